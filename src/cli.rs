@@ -1,0 +1,188 @@
+//! Command-line interface: argument parsing, progress display, exit codes.
+//! No rendering logic lives here; it calls the `prism` library.
+//!
+//! Exit codes: 0 success, 1 a failure while rendering or writing, 2 bad
+//! input (arguments, scene file, output path); on bad input nothing is
+//! written.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use prism::image_io::{OutputFormat, write_film};
+use prism::{RenderSettings, Scene, SceneError, render};
+
+/// Prism, an exact Whitted-style ray tracer.
+#[derive(Parser)]
+#[command(name = "prism", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene to an image (.png, .ppm, .exr, .hdr).
+    Render(RenderArgs),
+    /// Validate a scene file without rendering; reports every problem.
+    Check {
+        /// The scene file (TOML).
+        scene: PathBuf,
+    },
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    /// Scene file (TOML); the built-in demo scene when omitted.
+    scene: Option<PathBuf>,
+    /// Output image; the format follows the extension.
+    #[arg(short, long, default_value = "render.png")]
+    output: PathBuf,
+    /// Image width in pixels (overrides the scene).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65535))]
+    width: Option<u32>,
+    /// Image height in pixels (overrides the scene).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65535))]
+    height: Option<u32>,
+    /// Samples per pixel (overrides the scene).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    spp: Option<u32>,
+    /// Longest ray path counting the camera ray (overrides the scene).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    max_depth: Option<u32>,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    threads: Option<u32>,
+    /// Seed of the sample streams (overrides the scene).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Print nothing but errors.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+const BAD_INPUT: u8 = 2;
+
+/// Runs the command line and returns the process exit code.
+pub fn run() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            return ExitCode::from(if e.use_stderr() { BAD_INPUT } else { 0 });
+        }
+    };
+    match cli.command {
+        Command::Check { scene } => check(&scene),
+        Command::Render(args) => render_command(&args),
+    }
+}
+
+fn report_scene_error(e: &SceneError) -> ExitCode {
+    eprintln!("{e}");
+    ExitCode::from(BAD_INPUT)
+}
+
+fn check(path: &Path) -> ExitCode {
+    match Scene::load(path) {
+        Ok(scene) => {
+            println!(
+                "{}: ok ({} objects, {} lights, {} materials)",
+                path.display(),
+                scene.aggregate.primitives().len(),
+                scene.lights.len(),
+                scene.materials.len()
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => report_scene_error(&e),
+    }
+}
+
+fn render_command(args: &RenderArgs) -> ExitCode {
+    // Everything the user could have got wrong is checked before rendering.
+    if let Err(e) = OutputFormat::from_path(&args.output) {
+        eprintln!("error: {e}");
+        return ExitCode::from(BAD_INPUT);
+    }
+    if let Some(dir) = args
+        .output
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty() && !d.is_dir())
+    {
+        eprintln!(
+            "error: {}: the output directory does not exist",
+            dir.display()
+        );
+        return ExitCode::from(BAD_INPUT);
+    }
+    let scene = match &args.scene {
+        Some(path) => match Scene::load(path) {
+            Ok(s) => s,
+            Err(e) => return report_scene_error(&e),
+        },
+        None => Scene::demo(),
+    };
+    let settings = RenderSettings {
+        width: args.width.unwrap_or(scene.settings.width),
+        height: args.height.unwrap_or(scene.settings.height),
+        spp: args.spp.unwrap_or(scene.settings.spp),
+        max_depth: args.max_depth.unwrap_or(scene.settings.max_depth),
+        seed: args.seed.unwrap_or(scene.settings.seed),
+        threads: args.threads.map(|t| t as usize),
+        ..scene.settings
+    };
+    let threads = settings.threads.unwrap_or_else(rayon::current_num_threads);
+    let pixels = u64::from(settings.width) * u64::from(settings.height);
+    let bar = if args.quiet {
+        ProgressBar::hidden()
+    } else if std::io::stderr().is_terminal() {
+        let bar = ProgressBar::new(pixels);
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{spinner} [{elapsed_precise}] {wide_bar} {percent:>3}% ETA {eta}",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        bar
+    } else {
+        eprintln!(
+            "prism: rendering {}x{}, {} spp, {} threads",
+            settings.width, settings.height, settings.spp, threads
+        );
+        ProgressBar::hidden()
+    };
+    let output = match render(&scene, &settings, &|done| bar.set_position(done)) {
+        Ok(o) => o,
+        Err(e) => {
+            bar.abandon();
+            eprintln!("error: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    bar.finish_and_clear();
+    if let Err(e) = write_film(&output.film, &args.output) {
+        eprintln!("error: {e}");
+        return ExitCode::FAILURE;
+    }
+    if !args.quiet {
+        let s = output.stats;
+        eprintln!(
+            "prism: {}x{} {} spp, {} threads, {:.2} s; rays: {} camera, {} reflection, {} refraction, {} shadow; {:.2} Mrays/s -> {}",
+            settings.width,
+            settings.height,
+            settings.spp,
+            threads,
+            output.elapsed.as_secs_f64(),
+            s.camera,
+            s.reflection,
+            s.refraction,
+            s.shadow,
+            s.mrays_per_second(output.elapsed),
+            args.output.display()
+        );
+    }
+    ExitCode::SUCCESS
+}

@@ -1,0 +1,14 @@
+//! Primitives and their ray intersections, one file per shape. Each file
+//! carries the formula from the lecture notes it implements.
+
+pub mod aabb;
+pub mod hit;
+pub mod plane;
+pub mod polygon;
+pub mod sphere;
+
+pub use aabb::Aabb;
+pub use hit::{Hit, ShapeHit};
+pub use plane::Plane;
+pub use polygon::{Polygon, PolygonError};
+pub use sphere::{Ellipsoid, Sphere};

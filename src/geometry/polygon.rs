@@ -1,0 +1,436 @@
+//! Planar polygons: the ray meets the polygon's plane, then the hit is
+//! tested against the outline by the Jordan curve theorem (lecture notes,
+//! "Ray Polygon Intersections").
+
+use glam::{DVec2, DVec3};
+use thiserror::Error;
+
+use super::plane::plane_hit;
+use super::{Aabb, Plane, ShapeHit};
+use crate::math::Ray;
+
+/// Why a vertex list is not a usable polygon.
+#[derive(Debug, Error, PartialEq)]
+pub enum PolygonError {
+    /// Fewer than three vertices.
+    #[error("a polygon needs at least 3 vertices, got {0}")]
+    TooFewVertices(usize),
+    /// A non-finite coordinate.
+    #[error("vertex {0} is not finite")]
+    NotFinite(usize),
+    /// Two vertices coincide.
+    #[error("vertices {0} and {1} coincide")]
+    RepeatedVertex(usize, usize),
+    /// All vertices on one line (or one point): no area, no normal.
+    #[error("the vertices are collinear: the polygon has zero area")]
+    ZeroArea,
+    /// A vertex lies off the polygon's plane.
+    #[error(
+        "vertex {vertex} lies {distance:.3e} off the polygon's plane (tolerance {tolerance:.3e})"
+    )]
+    NotPlanar {
+        /// Index of the worst vertex.
+        vertex: usize,
+        /// Its distance from the plane.
+        distance: f64,
+        /// The allowed distance, relative to the polygon's size.
+        tolerance: f64,
+    },
+}
+
+/// Vertices closer than this fraction of the polygon's size coincide.
+const REPEAT_TOLERANCE: f64 = 1e-9;
+/// Vertices further than this fraction of the size from the plane make the
+/// polygon non-planar.
+const PLANARITY_TOLERANCE: f64 = 1e-6;
+
+/// A planar polygon, convex or concave, with its projection precomputed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Polygon {
+    /// The supporting plane (normal by Newell's method, following the
+    /// vertex order counter-clockwise).
+    pub plane: Plane,
+    /// The dropped (principal) axis: 0, 1 or 2 for x, y, z.
+    pub principal_axis: usize,
+    /// Vertices projected along the principal axis.
+    projected: Box<[DVec2]>,
+    /// The 3D vertices, kept for bounds and transforms.
+    vertices: Box<[DVec3]>,
+}
+
+/// Newell's method: the polygon normal as the sum over edges of
+/// (yᵢ − yⱼ)(zᵢ + zⱼ), (zᵢ − zⱼ)(xᵢ + xⱼ), (xᵢ − xⱼ)(yᵢ + yⱼ), j = i + 1.
+/// Its length is twice the area; it is robust for concave and nearly
+/// degenerate polygons where one cross product is not.
+pub fn newell_normal(vertices: &[DVec3]) -> DVec3 {
+    let mut n = DVec3::ZERO;
+    for (i, a) in vertices.iter().enumerate() {
+        let b = vertices[(i + 1) % vertices.len()];
+        n += DVec3::new(
+            (a.y - b.y) * (a.z + b.z),
+            (a.z - b.z) * (a.x + b.x),
+            (a.x - b.x) * (a.y + b.y),
+        );
+    }
+    n
+}
+
+/// The principal axis: the index of the normal's largest |component|.
+/// Projecting along it preserves the polygon's topology and loses the least
+/// area. For n = [0.2, 0.96, 0.3] it is y (1): project onto the zx plane.
+pub fn principal_axis(normal: DVec3) -> usize {
+    let a = normal.abs();
+    if a.x >= a.y && a.x >= a.z {
+        0
+    } else if a.y >= a.z {
+        1
+    } else {
+        2
+    }
+}
+
+/// Drops `axis` from `p`, keeping the other two coordinates in cyclic order
+/// (x → (y, z), y → (z, x), z → (x, y)) so the projection keeps handedness.
+#[inline]
+pub fn project(p: DVec3, axis: usize) -> DVec2 {
+    match axis {
+        0 => DVec2::new(p.y, p.z),
+        1 => DVec2::new(p.z, p.x),
+        _ => DVec2::new(p.x, p.y),
+    }
+}
+
+/// Where the edge (u1, v1)–(u2, v2) meets the u axis:
+/// u_int = u1 − v1·(u2 − u1)/(v2 − v1).
+#[inline]
+pub fn axis_crossing(a: DVec2, b: DVec2) -> f64 {
+    a.x - a.y * (b.x - a.x) / (b.y - a.y)
+}
+
+/// Counts the edges of the closed outline `vertices` that cross the positive
+/// u axis from `point`, after translating `point` to the origin.
+///
+/// Quick rejects as in the notes: both v positive, both v negative, both u
+/// negative. The half-open rule counts v = 0 as negative, so an outline
+/// passing exactly through a vertex on the axis crosses it once, not twice.
+pub fn crossing_count(point: DVec2, vertices: &[DVec2]) -> usize {
+    let mut crossings = 0;
+    let mut a = vertices[vertices.len() - 1] - point;
+    for &vertex in vertices {
+        let b = vertex - point;
+        let (a_up, b_up) = (a.y > 0.0, b.y > 0.0);
+        if a_up != b_up && !(a.x < 0.0 && b.x < 0.0) && axis_crossing(a, b) > 0.0 {
+            crossings += 1;
+        }
+        a = b;
+    }
+    crossings
+}
+
+/// Jordan curve theorem: inside when the crossing count is odd.
+#[inline]
+pub fn point_in_polygon(point: DVec2, vertices: &[DVec2]) -> bool {
+    crossing_count(point, vertices) % 2 == 1
+}
+
+impl Polygon {
+    /// Builds a polygon, checking that the vertices describe one: at least
+    /// three, all distinct, not all collinear, all on one plane.
+    pub fn new(vertices: Vec<DVec3>) -> Result<Self, PolygonError> {
+        if vertices.len() < 3 {
+            return Err(PolygonError::TooFewVertices(vertices.len()));
+        }
+        if let Some(i) = vertices.iter().position(|v| !v.is_finite()) {
+            return Err(PolygonError::NotFinite(i));
+        }
+        let size = Aabb::from_points(vertices.iter().copied()).diagonal();
+        for i in 0..vertices.len() {
+            for j in i + 1..vertices.len() {
+                if (vertices[i] - vertices[j]).length() <= REPEAT_TOLERANCE * size {
+                    return Err(PolygonError::RepeatedVertex(i, j));
+                }
+            }
+        }
+        let newell = newell_normal(&vertices);
+        if newell.length() <= 1e-12 * size * size {
+            return Err(PolygonError::ZeroArea);
+        }
+        let normal = newell.normalize();
+        let centroid = vertices.iter().sum::<DVec3>() / vertices.len() as f64;
+        let plane = Plane::through(centroid, normal);
+        let tolerance = PLANARITY_TOLERANCE * size;
+        let (vertex, distance) = vertices
+            .iter()
+            .map(|v| plane.signed_distance(*v).abs())
+            .enumerate()
+            .fold(
+                (0, 0.0),
+                |best, (i, d)| if d > best.1 { (i, d) } else { best },
+            );
+        if distance > tolerance {
+            return Err(PolygonError::NotPlanar {
+                vertex,
+                distance,
+                tolerance,
+            });
+        }
+        let principal_axis = principal_axis(normal);
+        let projected = vertices
+            .iter()
+            .map(|v| project(*v, principal_axis))
+            .collect();
+        Ok(Polygon {
+            plane,
+            principal_axis,
+            projected,
+            vertices: vertices.into_boxed_slice(),
+        })
+    }
+
+    /// The vertices in order.
+    pub fn vertices(&self) -> &[DVec3] {
+        &self.vertices
+    }
+
+    /// The bounding box.
+    pub fn bounds(&self) -> Aabb {
+        Aabb::from_points(self.vertices.iter().copied())
+    }
+
+    /// The plane hit, kept only if its projection lies inside the outline.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
+        let h = plane_hit(self.plane.normal, self.plane.distance, ray, t_min, t_max)?;
+        let p = project(ray.at(h.t), self.principal_axis);
+        point_in_polygon(p, &self.projected).then_some(ShapeHit {
+            t: h.t,
+            normal: self.plane.normal,
+            front_face: !h.back_face,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::rng::PixelRng;
+
+    fn square() -> Vec<DVec2> {
+        vec![
+            DVec2::new(0.0, 0.0),
+            DVec2::new(1.0, 0.0),
+            DVec2::new(1.0, 1.0),
+            DVec2::new(0.0, 1.0),
+        ]
+    }
+
+    #[test]
+    fn principal_axis_of_the_notes_example_is_y() {
+        assert_eq!(principal_axis(DVec3::new(0.2, 0.96, 0.3)), 1);
+        assert_eq!(principal_axis(DVec3::new(-0.9, 0.1, 0.3)), 0);
+        assert_eq!(principal_axis(DVec3::new(0.1, 0.1, -0.99)), 2);
+        // y dropped: the projection is onto the zx plane.
+        assert_eq!(project(DVec3::new(1.0, 2.0, 3.0), 1), DVec2::new(3.0, 1.0));
+    }
+
+    #[test]
+    fn axis_crossing_hand_worked() {
+        // Edge from (1, -1) to (3, 1) meets v = 0 at u = 2.
+        assert_eq!(
+            axis_crossing(DVec2::new(1.0, -1.0), DVec2::new(3.0, 1.0)),
+            2.0
+        );
+        // Edge from (-3, 2) to (1, -2) meets v = 0 at u = -1.
+        assert_eq!(
+            axis_crossing(DVec2::new(-3.0, 2.0), DVec2::new(1.0, -2.0)),
+            -1.0
+        );
+    }
+
+    #[test]
+    fn square_inside_and_outside() {
+        let s = square();
+        assert!(point_in_polygon(DVec2::new(0.5, 0.5), &s));
+        assert_eq!(crossing_count(DVec2::new(-0.5, 0.5), &s), 2);
+        assert!(!point_in_polygon(DVec2::new(1.5, 0.5), &s));
+        assert!(!point_in_polygon(DVec2::new(0.5, 1.5), &s));
+    }
+
+    #[test]
+    fn axis_through_a_vertex_counts_once() {
+        // A diamond whose right vertex (2, 0) lies on the test axis of the
+        // centre: without the half-open rule both edges there would count.
+        let diamond = [
+            DVec2::new(0.0, -1.0),
+            DVec2::new(2.0, 0.0),
+            DVec2::new(0.0, 1.0),
+            DVec2::new(-2.0, 0.0),
+        ];
+        assert_eq!(crossing_count(DVec2::ZERO, &diamond), 1);
+        // A vertex touching the axis from above only (a spike) counts 0 or 2.
+        let spike = [
+            DVec2::new(-1.0, 1.0),
+            DVec2::new(1.0, 0.0),
+            DVec2::new(3.0, 1.0),
+            DVec2::new(3.0, 2.0),
+            DVec2::new(-1.0, 2.0),
+        ];
+        assert_eq!(crossing_count(DVec2::ZERO, &spike) % 2, 0);
+        // A horizontal edge lying on the axis.
+        let step = [
+            DVec2::new(1.0, -1.0),
+            DVec2::new(1.0, 0.0),
+            DVec2::new(2.0, 0.0),
+            DVec2::new(2.0, 1.0),
+            DVec2::new(-1.0, 1.0),
+            DVec2::new(-1.0, -1.0),
+        ];
+        assert_eq!(crossing_count(DVec2::new(0.0, 0.0), &step), 1);
+    }
+
+    /// A random star-shaped (generally concave) polygon around the origin.
+    fn random_star(rng: &mut PixelRng) -> Vec<DVec2> {
+        let n = 3 + rng.below(12);
+        let mut angles: Vec<f64> = (0..n)
+            .map(|_| rng.uniform() * std::f64::consts::TAU)
+            .collect();
+        angles.sort_by(f64::total_cmp);
+        angles
+            .iter()
+            .map(|a| (0.2 + rng.uniform()) * DVec2::new(a.cos(), a.sin()))
+            .collect()
+    }
+
+    /// Independent reference for star-shaped polygons: inside iff inside one
+    /// of the fan triangles (origin, vᵢ, vᵢ₊₁), by signed areas.
+    fn inside_fan(p: DVec2, poly: &[DVec2]) -> bool {
+        let cross = |a: DVec2, b: DVec2| a.x * b.y - a.y * b.x;
+        (0..poly.len()).any(|i| {
+            let a = poly[i];
+            let b = poly[(i + 1) % poly.len()];
+            let total = cross(a, b);
+            if total.abs() < 1e-12 {
+                return false;
+            }
+            let s = total.signum();
+            cross(a, p) * s > 0.0 && cross(p, b) * s > 0.0 && cross(b - a, p - a) * s > 0.0
+        })
+    }
+
+    #[test]
+    fn crossing_test_matches_brute_force_on_random_concave_polygons() {
+        let mut rng = PixelRng::new(2024, 0, 0);
+        let mut checked = 0;
+        for _ in 0..300 {
+            let poly = random_star(&mut rng);
+            // Angular gaps above π make the fan reference wrong; skip those.
+            let mut angles: Vec<f64> = poly.iter().map(|v| v.y.atan2(v.x)).collect();
+            angles.sort_by(f64::total_cmp);
+            let wrap = angles[0] + std::f64::consts::TAU - angles[angles.len() - 1];
+            if angles.windows(2).any(|w| w[1] - w[0] >= 3.1) || wrap >= 3.1 {
+                continue;
+            }
+            for _ in 0..100 {
+                let p = DVec2::new(rng.uniform() * 3.0 - 1.5, rng.uniform() * 3.0 - 1.5);
+                assert_eq!(
+                    point_in_polygon(p, &poly),
+                    inside_fan(p, &poly),
+                    "{p:?} in {poly:?}"
+                );
+                checked += 1;
+            }
+        }
+        assert!(checked > 10_000, "only {checked} points checked");
+    }
+
+    #[test]
+    fn concave_polygon_ray_hits_only_inside_the_notch() {
+        // An L shape in the plane z = 2, seen along -z.
+        let l = Polygon::new(vec![
+            DVec3::new(0.0, 0.0, 2.0),
+            DVec3::new(2.0, 0.0, 2.0),
+            DVec3::new(2.0, 1.0, 2.0),
+            DVec3::new(1.0, 1.0, 2.0),
+            DVec3::new(1.0, 2.0, 2.0),
+            DVec3::new(0.0, 2.0, 2.0),
+        ])
+        .unwrap();
+        assert_eq!(l.principal_axis, 2);
+        let shoot = |x: f64, y: f64| {
+            l.intersect(
+                &Ray::new(DVec3::new(x, y, 5.0), -DVec3::Z),
+                0.0,
+                f64::INFINITY,
+            )
+        };
+        let h = shoot(0.5, 1.5).expect("inside the upper arm");
+        assert!((h.t - 3.0).abs() < 1e-12 && h.front_face);
+        assert!(shoot(1.5, 0.5).is_some());
+        assert!(shoot(1.5, 1.5).is_none(), "the notch is outside");
+        assert!(shoot(2.5, 0.5).is_none());
+    }
+
+    #[test]
+    fn tilted_polygon_matches_its_plane() {
+        let n = DVec3::new(0.2, 0.96, 0.3).normalize();
+        let frame = crate::math::Frame::from_z(n);
+        let verts: Vec<DVec3> = (0..5)
+            .map(|i| {
+                let a = i as f64 * std::f64::consts::TAU / 5.0;
+                DVec3::new(1.0, 2.0, 3.0) + frame.to_world(DVec3::new(a.cos(), a.sin(), 0.0))
+            })
+            .collect();
+        let p = Polygon::new(verts).unwrap();
+        assert_eq!(p.principal_axis, 1);
+        assert!((p.plane.normal - n).length() < 1e-12);
+        let ray = Ray::new(DVec3::new(1.0, 2.0, 3.0) + 4.0 * n, -n);
+        let h = p.intersect(&ray, 0.0, f64::INFINITY).unwrap();
+        assert!((h.t - 4.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn bad_vertex_lists_are_refused() {
+        let v = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+        assert_eq!(
+            Polygon::new(vec![v(0., 0., 0.), v(1., 0., 0.)]),
+            Err(PolygonError::TooFewVertices(2))
+        );
+        assert_eq!(
+            Polygon::new(vec![
+                v(0., 0., 0.),
+                v(1., 0., 0.),
+                v(1., 0., 0.),
+                v(0., 1., 0.)
+            ]),
+            Err(PolygonError::RepeatedVertex(1, 2))
+        );
+        assert_eq!(
+            Polygon::new(vec![v(0., 0., 0.), v(1., 1., 1.), v(2., 2., 2.)]),
+            Err(PolygonError::ZeroArea)
+        );
+        assert!(matches!(
+            Polygon::new(vec![
+                v(0., 0., 0.),
+                v(1., 0., 0.),
+                v(1., 1., 0.1),
+                v(0., 1., 0.)
+            ]),
+            Err(PolygonError::NotPlanar { .. })
+        ));
+        assert_eq!(
+            Polygon::new(vec![v(0., 0., 0.), v(f64::NAN, 0., 0.), v(0., 1., 0.)]),
+            Err(PolygonError::NotFinite(1))
+        );
+    }
+
+    #[test]
+    fn newell_normal_length_is_twice_the_area() {
+        let n = newell_normal(&[
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::new(2.0, 3.0, 0.0),
+            DVec3::new(0.0, 3.0, 0.0),
+        ]);
+        assert_eq!(n, DVec3::new(0.0, 0.0, 12.0));
+    }
+}

@@ -1,0 +1,185 @@
+//! Light sources: points, directions and spheres (lights with volume, which
+//! cast soft shadows). A light is sampled into directions towards it; the
+//! shading code sends one shadow feeler along each.
+
+use glam::DVec3;
+
+use crate::geometry::sphere::sphere_roots;
+use crate::math::Frame;
+use crate::math::rng::PixelRng;
+use crate::math::sampling::{stratified_point, uniform_cone};
+
+/// Where light comes from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LightShape {
+    /// All light leaves one point.
+    Point {
+        /// Position.
+        position: DVec3,
+    },
+    /// Parallel light from infinitely far away.
+    Directional {
+        /// Unit direction the light travels in.
+        direction: DVec3,
+    },
+    /// A glowing sphere, sampled with `samples` feelers per shading point.
+    Sphere {
+        /// Centre.
+        center: DVec3,
+        /// Radius (> 0; radius 0 is a point light).
+        radius: f64,
+        /// Shadow feelers per shading point.
+        samples: u32,
+    },
+}
+
+/// A light source.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Light {
+    /// Geometry of the emitter.
+    pub shape: LightShape,
+    /// Il: colour × intensity.
+    pub radiance: DVec3,
+    /// Divide by the squared distance to the light (point and sphere only).
+    pub inverse_square: bool,
+}
+
+/// One direction towards a light from a shading point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightSample {
+    /// Unit direction L from the point towards the light.
+    pub direction: DVec3,
+    /// How far the shadow feeler goes (to the light's surface; ∞ for
+    /// directional lights).
+    pub distance: f64,
+    /// Distance falloff factor (1 without inverse-square falloff).
+    pub falloff: f64,
+}
+
+impl Light {
+    /// How many feelers one shading point sends to this light.
+    pub fn sample_count(&self) -> usize {
+        match self.shape {
+            LightShape::Sphere { samples, .. } => samples.max(1) as usize,
+            _ => 1,
+        }
+    }
+
+    /// Sample `index` of `count` towards the light from `point`.
+    ///
+    /// Sphere lights are sampled uniformly over the cone of directions the
+    /// sphere subtends from `point`, one stratum of the unit square per
+    /// sample, so the visible fraction of the light is estimated with
+    /// stratified, equal-solid-angle samples: a smooth penumbra with few rays.
+    pub fn sample(
+        &self,
+        point: DVec3,
+        index: usize,
+        count: usize,
+        rng: &mut PixelRng,
+    ) -> LightSample {
+        match self.shape {
+            LightShape::Point { position } => self.towards_point(point, position),
+            LightShape::Directional { direction } => LightSample {
+                direction: -direction,
+                distance: f64::INFINITY,
+                falloff: 1.0,
+            },
+            LightShape::Sphere { center, radius, .. } => {
+                let to_center = center - point;
+                let d2 = to_center.length_squared();
+                if d2 <= radius * radius {
+                    // Inside the light: lit from everywhere, nothing can block.
+                    let mut s = self.towards_point(point, center);
+                    s.distance = 0.0;
+                    return s;
+                }
+                let d = d2.sqrt();
+                let axis = to_center / d;
+                let cos_max = (1.0 - radius * radius / d2).max(0.0).sqrt();
+                let u = stratified_point(index, count, rng);
+                let direction = uniform_cone(&Frame::from_z(axis), cos_max, u);
+                // The feeler ends where the direction meets the sphere; at the
+                // cone's rim rounding may miss it, then the tangent point.
+                let distance = sphere_roots(point, direction, center, radius)
+                    .map_or(to_center.dot(direction), |(t0, _)| t0);
+                LightSample {
+                    direction,
+                    distance,
+                    falloff: self.falloff(d2),
+                }
+            }
+        }
+    }
+
+    fn towards_point(&self, point: DVec3, position: DVec3) -> LightSample {
+        let to_light = position - point;
+        let d2 = to_light.length_squared();
+        let distance = d2.sqrt();
+        LightSample {
+            direction: to_light / distance,
+            distance,
+            falloff: self.falloff(d2),
+        }
+    }
+
+    #[inline]
+    fn falloff(&self, distance_squared: f64) -> f64 {
+        if self.inverse_square {
+            1.0 / distance_squared
+        } else {
+            1.0
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn point_light_sample() {
+        let l = Light {
+            shape: LightShape::Point {
+                position: DVec3::new(0.0, 4.0, 0.0),
+            },
+            radiance: DVec3::ONE,
+            inverse_square: true,
+        };
+        let mut rng = PixelRng::new(0, 0, 0);
+        let s = l.sample(DVec3::new(0.0, 2.0, 0.0), 0, 1, &mut rng);
+        assert_eq!(s.direction, DVec3::Y);
+        assert_eq!(s.distance, 2.0);
+        assert_eq!(s.falloff, 0.25);
+        assert_eq!(l.sample_count(), 1);
+    }
+
+    #[test]
+    fn sphere_light_samples_end_on_the_sphere_and_cover_it_evenly() {
+        let center = DVec3::new(1.0, 5.0, -2.0);
+        let radius = 1.5;
+        let l = Light {
+            shape: LightShape::Sphere {
+                center,
+                radius,
+                samples: 64,
+            },
+            radiance: DVec3::ONE,
+            inverse_square: false,
+        };
+        let mut rng = PixelRng::new(9, 1, 2);
+        let mut mean = DVec3::ZERO;
+        for i in 0..64 {
+            let s = l.sample(DVec3::ZERO, i, 64, &mut rng);
+            assert!(((s.direction * s.distance - center).length() - radius).abs() < 1e-9);
+            mean += s.direction;
+        }
+        // Stratified over the cone, the mean direction points at the centre.
+        let axis = center.normalize();
+        assert!(
+            mean.normalize().dot(axis) > 0.9999,
+            "{}",
+            mean.normalize().dot(axis)
+        );
+    }
+}

@@ -1,0 +1,194 @@
+//! The render loop: the image is cut into tiles rendered in parallel; each
+//! pixel draws from its own random stream, so the result does not depend on
+//! the thread count or the tile order.
+
+mod film;
+mod stats;
+
+pub use film::Film;
+pub use stats::RayStats;
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use glam::DVec3;
+use rayon::prelude::*;
+use thiserror::Error;
+
+use crate::math::rng::PixelRng;
+use crate::math::sampling::stratified_point;
+use crate::scene::Scene;
+use crate::shading::whitted::{Whitted, WhittedSettings};
+
+/// Side of the square tiles the image is cut into.
+const TILE: u32 = 16;
+
+/// How to render: resolution, sampling and recursion limits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderSettings {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Samples per pixel on a stratified grid (1: the pixel centre).
+    pub spp: u32,
+    /// Longest ray path, counting the camera ray.
+    pub max_depth: u32,
+    /// Secondary rays below this weight in the pixel are not traced.
+    pub min_weight: f64,
+    /// Seed of the per-pixel random streams.
+    pub seed: u64,
+    /// Worker threads; `None` uses every core.
+    pub threads: Option<usize>,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            width: 640,
+            height: 480,
+            spp: 4,
+            max_depth: 8,
+            min_weight: 1e-3,
+            seed: 0,
+            threads: None,
+        }
+    }
+}
+
+/// Why a render could not run.
+#[derive(Debug, Error)]
+pub enum RenderError {
+    /// The thread pool could not be built.
+    #[error("cannot start {threads} render threads: {source}")]
+    Threads {
+        /// Threads asked for.
+        threads: usize,
+        /// The cause.
+        source: rayon::ThreadPoolBuildError,
+    },
+}
+
+/// A finished render.
+pub struct RenderOutput {
+    /// Linear radiance per pixel.
+    pub film: Film,
+    /// Rays traced, by kind.
+    pub stats: RayStats,
+    /// Wall-clock time of the render itself.
+    pub elapsed: Duration,
+}
+
+/// A rectangle of pixels, the unit of parallel work.
+#[derive(Clone, Copy, Debug)]
+struct Tile {
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+}
+
+fn tiles(width: u32, height: u32) -> Vec<Tile> {
+    let mut tiles = Vec::new();
+    for y0 in (0..height).step_by(TILE as usize) {
+        for x0 in (0..width).step_by(TILE as usize) {
+            tiles.push(Tile {
+                x0,
+                y0,
+                x1: (x0 + TILE).min(width),
+                y1: (y0 + TILE).min(height),
+            });
+        }
+    }
+    tiles
+}
+
+/// Renders `scene` with `settings`. `progress` is called from the worker
+/// threads with the number of pixels finished so far.
+pub fn render(
+    scene: &Scene,
+    settings: &RenderSettings,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<RenderOutput, RenderError> {
+    let start = Instant::now();
+    let mut builder = rayon::ThreadPoolBuilder::new();
+    if let Some(threads) = settings.threads {
+        builder = builder.num_threads(threads);
+    }
+    let pool = builder.build().map_err(|source| RenderError::Threads {
+        threads: settings.threads.unwrap_or(0),
+        source,
+    })?;
+    let tracer = Whitted::new(
+        scene,
+        WhittedSettings {
+            max_depth: settings.max_depth.max(1),
+            min_weight: settings.min_weight,
+        },
+    );
+    let done = AtomicU64::new(0);
+    let rendered: Vec<(Tile, Vec<DVec3>, RayStats)> = pool.install(|| {
+        tiles(settings.width, settings.height)
+            .into_par_iter()
+            .map(|tile| {
+                let mut stats = RayStats::default();
+                let mut pixels =
+                    Vec::with_capacity(((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize);
+                for y in tile.y0..tile.y1 {
+                    for x in tile.x0..tile.x1 {
+                        pixels.push(render_pixel(scene, &tracer, settings, x, y, &mut stats));
+                    }
+                }
+                let n = pixels.len() as u64;
+                progress(done.fetch_add(n, Ordering::Relaxed) + n);
+                (tile, pixels, stats)
+            })
+            .collect()
+    });
+    let mut film = Film::new(settings.width, settings.height);
+    let mut stats = RayStats::default();
+    for (tile, pixels, tile_stats) in rendered {
+        let mut values = pixels.into_iter();
+        for y in tile.y0..tile.y1 {
+            for x in tile.x0..tile.x1 {
+                film.set(x, y, values.next().unwrap_or_default());
+            }
+        }
+        stats += tile_stats;
+    }
+    Ok(RenderOutput {
+        film,
+        stats,
+        elapsed: start.elapsed(),
+    })
+}
+
+/// One pixel: `spp` camera rays through a stratified (jittered) grid over
+/// the pixel, box-filtered; a single sample goes through the centre.
+pub fn render_pixel(
+    scene: &Scene,
+    tracer: &Whitted,
+    settings: &RenderSettings,
+    x: u32,
+    y: u32,
+    stats: &mut RayStats,
+) -> DVec3 {
+    let mut rng = PixelRng::new(settings.seed, x, y);
+    let spp = settings.spp.max(1) as usize;
+    let mut sum = DVec3::ZERO;
+    for s in 0..spp {
+        let offset = if spp == 1 {
+            glam::DVec2::splat(0.5)
+        } else {
+            stratified_point(s, spp, &mut rng)
+        };
+        let ray = scene.camera.ray(
+            f64::from(x) + offset.x,
+            f64::from(y) + offset.y,
+            settings.width,
+            settings.height,
+        );
+        sum += tracer.radiance(&ray, &mut rng, stats);
+    }
+    sum / spp as f64
+}

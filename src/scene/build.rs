@@ -1,0 +1,533 @@
+//! [`SceneFile`] → runtime [`Scene`]: every value checked, every problem
+//! reported with its span, object transforms applied.
+
+use std::collections::BTreeMap;
+use std::ops::Range;
+
+use glam::{DAffine3, DMat3, DMat4, DQuat, DVec3, DVec4};
+use toml::Spanned;
+
+use super::Scene;
+use super::error::Diagnostics;
+use super::format::*;
+use crate::accel::{Aggregate, Primitive, Shape};
+use crate::camera::{Camera, FovAxis, Projection};
+use crate::geometry::{Ellipsoid, Plane, Polygon, Sphere};
+use crate::lights::{Light, LightShape};
+use crate::math::Transform;
+use crate::render::RenderSettings;
+use crate::shading::{Fresnel, Highlight, Material, Texture};
+
+/// Builds the runtime scene; `None` if any problem was recorded.
+pub fn build(file: SceneFile, file_span: Range<usize>, diags: &mut Diagnostics) -> Option<Scene> {
+    let mut c = Check { diags };
+    let settings = c.settings(&file.render);
+    let background = file
+        .render
+        .background
+        .as_ref()
+        .map_or(DVec3::ZERO, |v| c.color(v, "background"));
+    let ambient = file
+        .render
+        .ambient
+        .as_ref()
+        .map_or(DVec3::splat(0.1), |v| c.color(v, "ambient"));
+    let camera = match &file.camera {
+        Some(desc) => c.camera(desc),
+        None => {
+            c.diags.error(
+                file_span.start..file_span.start,
+                "missing [camera] section (position and look_at are required)",
+            );
+            None
+        }
+    };
+    let mut material_index = BTreeMap::new();
+    let mut materials = Vec::new();
+    for (name, desc) in &file.materials {
+        material_index.insert(name.as_str(), materials.len() as u32);
+        materials.push(c.material(name, desc));
+    }
+    let lights = file
+        .lights
+        .iter()
+        .filter_map(|(name, d)| c.light(name, d))
+        .collect();
+    let primitives = file
+        .objects
+        .iter()
+        .enumerate()
+        .filter_map(|(i, o)| c.object(i, o, &material_index))
+        .collect();
+    if !c.diags.is_empty() {
+        return None;
+    }
+    Some(Scene {
+        camera: camera?,
+        aggregate: Aggregate::new(primitives),
+        materials,
+        lights,
+        background,
+        ambient,
+        transparent_shadows: file.render.transparent_shadows.unwrap_or(false),
+        settings,
+    })
+}
+
+struct Check<'d, 's> {
+    diags: &'d mut Diagnostics<'s>,
+}
+
+impl Check<'_, '_> {
+    fn error(&mut self, span: Range<usize>, message: String) {
+        self.diags.error(span, message);
+    }
+
+    /// Three finite numbers.
+    fn vector(&mut self, v: &Triple, what: &str) -> DVec3 {
+        let d = DVec3::from_array(*v.get_ref());
+        if !d.is_finite() {
+            self.error(
+                v.span(),
+                format!(
+                    "`{what}` must be three finite numbers, got {:?}",
+                    v.get_ref()
+                ),
+            );
+            return DVec3::ZERO;
+        }
+        d
+    }
+
+    /// A non-zero finite vector, normalised.
+    fn direction(&mut self, v: &Triple, what: &str) -> DVec3 {
+        let d = self.vector(v, what);
+        d.try_normalize().unwrap_or_else(|| {
+            if d.is_finite() {
+                self.error(v.span(), format!("`{what}` must be a non-zero vector"));
+            }
+            DVec3::Z
+        })
+    }
+
+    /// A colour: three finite, non-negative numbers.
+    fn color(&mut self, v: &Triple, what: &str) -> DVec3 {
+        let c = self.vector(v, what);
+        if c.min_element() < 0.0 {
+            self.error(
+                v.span(),
+                format!(
+                    "`{what}` components must not be negative, got {:?}",
+                    v.get_ref()
+                ),
+            );
+        }
+        c
+    }
+
+    /// An optional number with a default, checked against `valid`.
+    fn number(
+        &mut self,
+        v: &Option<Number>,
+        default: f64,
+        what: &str,
+        valid: (fn(f64) -> bool, &str),
+    ) -> f64 {
+        let Some(v) = v else { return default };
+        let x = *v.get_ref();
+        if !x.is_finite() {
+            self.error(
+                v.span(),
+                format!("`{what}` must be a finite number, got {x}"),
+            );
+        } else if !valid.0(x) {
+            self.error(v.span(), format!("`{what}` must be {}, got {x}", valid.1));
+        }
+        x
+    }
+
+    /// An optional count of at least 1.
+    fn count(&mut self, v: &Option<Spanned<u32>>, default: u32, what: &str) -> u32 {
+        match v {
+            Some(v) if *v.get_ref() == 0 => {
+                self.error(v.span(), format!("`{what}` must be at least 1"));
+                default
+            }
+            Some(v) => *v.get_ref(),
+            None => default,
+        }
+    }
+
+    fn settings(&mut self, r: &RenderDesc) -> RenderSettings {
+        let defaults = RenderSettings::default();
+        RenderSettings {
+            width: self.count(&r.width, defaults.width, "width"),
+            height: self.count(&r.height, defaults.height, "height"),
+            spp: self.count(&r.spp, defaults.spp, "spp"),
+            max_depth: self.count(&r.max_depth, defaults.max_depth, "max_depth"),
+            min_weight: self.number(
+                &r.min_weight,
+                defaults.min_weight,
+                "min_weight",
+                UNIT_INTERVAL,
+            ),
+            seed: r.seed.as_ref().map_or(defaults.seed, |s| *s.get_ref()),
+            threads: None,
+        }
+    }
+
+    fn camera(&mut self, desc: &Spanned<CameraDesc>) -> Option<Camera> {
+        let d = desc.get_ref();
+        let position = self.vector(&d.position, "position");
+        let look_at = self.vector(&d.look_at, "look_at");
+        let up = d.up.as_ref().map_or(DVec3::Y, |u| self.direction(u, "up"));
+        let projection = match d.kind {
+            CameraKind::Perspective => {
+                if let Some(v) = &d.view_height {
+                    self.error(
+                        v.span(),
+                        "`view_height` applies to orthographic cameras; use `fov`".into(),
+                    );
+                }
+                let fov = self.number(
+                    &d.fov,
+                    45.0,
+                    "fov",
+                    (|x| x > 0.0 && x < 180.0, "between 0 and 180 degrees"),
+                );
+                Projection::Perspective {
+                    fov: fov.to_radians(),
+                    axis: match d.fov_axis {
+                        Some(FovAxisDesc::Horizontal) => FovAxis::Horizontal,
+                        _ => FovAxis::Vertical,
+                    },
+                }
+            }
+            CameraKind::Orthographic => {
+                if let Some(v) = &d.fov {
+                    self.error(
+                        v.span(),
+                        "`fov` applies to perspective cameras; use `view_height`".into(),
+                    );
+                }
+                let view_height = self.number(&d.view_height, 2.0, "view_height", POSITIVE);
+                Projection::Orthographic { view_height }
+            }
+        };
+        let camera = Camera::look_at(position, look_at, up, projection);
+        if camera.is_none() && self.diags.is_empty() {
+            self.error(
+                d.look_at.span(),
+                "the camera needs `look_at` away from `position` and a view direction not parallel to `up`".into(),
+            );
+        }
+        camera
+    }
+
+    fn material(&mut self, name: &str, desc: &Spanned<MaterialDesc>) -> Material {
+        let d = desc.get_ref();
+        let color = d
+            .color
+            .as_ref()
+            .map_or(DVec3::ONE, |c| self.color(c, "color"));
+        let texture = match &d.checker {
+            None => Texture::Solid(color),
+            Some(ch) => Texture::Checker {
+                even: color,
+                odd: self.color(&ch.get_ref().color, "checker.color"),
+                size: self.number(&ch.get_ref().size, 1.0, "checker.size", POSITIVE),
+            },
+        };
+        let kr = self.number(&d.kr, 0.0, "kr", NON_NEGATIVE);
+        let kt = self.number(&d.kt, 0.0, "kt", NON_NEGATIVE);
+        if kr + kt > 1.0 + 1e-9 {
+            let span =
+                d.kt.as_ref()
+                    .or(d.kr.as_ref())
+                    .map_or(desc.span(), |s| s.span());
+            self.error(
+                span,
+                format!(
+                    "material `{name}`: kr + kt = {} exceeds 1, which would create light",
+                    kr + kt
+                ),
+            );
+        }
+        Material {
+            texture,
+            ka: self.number(&d.ka, 0.1, "ka", NON_NEGATIVE),
+            kd: self.number(&d.kd, 0.8, "kd", NON_NEGATIVE),
+            ks: self.number(&d.ks, 0.0, "ks", NON_NEGATIVE),
+            shininess: self.number(&d.shininess, 32.0, "shininess", NON_NEGATIVE),
+            kr,
+            kt,
+            ior: self.number(&d.ior, 1.0, "ior", POSITIVE),
+            fresnel: match d.fresnel {
+                None | Some(FresnelDesc::Off) => Fresnel::Off,
+                Some(FresnelDesc::Exact) => Fresnel::Exact,
+                Some(FresnelDesc::Schlick) => Fresnel::Schlick,
+            },
+            highlight: match d.highlight {
+                Some(HighlightDesc::Blinn) => Highlight::Blinn,
+                _ => Highlight::Phong,
+            },
+        }
+    }
+
+    fn light(&mut self, name: &str, desc: &Spanned<LightDesc>) -> Option<Light> {
+        let d = desc.get_ref();
+        let kind = *d.kind.get_ref();
+        let radiance = d
+            .color
+            .as_ref()
+            .map_or(DVec3::ONE, |c| self.color(c, "color"))
+            * self.number(&d.intensity, 1.0, "intensity", NON_NEGATIVE);
+        let label = format!("light `{name}`");
+        let needs = |this: &mut Self, field: &Option<Triple>, key: &str| {
+            if field.is_none() {
+                this.error(
+                    desc.span(),
+                    format!("{label}: a {kind:?} light needs `{key}`").to_lowercase(),
+                );
+            }
+        };
+        let reject = |this: &mut Self, span: Option<Range<usize>>, key: &str| {
+            if let Some(span) = span {
+                this.error(
+                    span,
+                    format!(
+                        "{label}: `{key}` does not apply to a {} light",
+                        format!("{kind:?}").to_lowercase()
+                    ),
+                );
+            }
+        };
+        let shape = match kind {
+            LightKind::Point | LightKind::Sphere => {
+                needs(self, &d.position, "position");
+                reject(self, d.direction.as_ref().map(Spanned::span), "direction");
+                let position = d.position.as_ref().map(|p| self.vector(p, "position"))?;
+                if kind == LightKind::Point {
+                    reject(self, d.radius.as_ref().map(Spanned::span), "radius");
+                    reject(self, d.samples.as_ref().map(Spanned::span), "samples");
+                    LightShape::Point { position }
+                } else {
+                    let radius = self.number(&d.radius, 1.0, "radius", NON_NEGATIVE);
+                    let samples = self.count(&d.samples, 16, "samples");
+                    if radius == 0.0 {
+                        LightShape::Point { position }
+                    } else {
+                        LightShape::Sphere {
+                            center: position,
+                            radius,
+                            samples,
+                        }
+                    }
+                }
+            }
+            LightKind::Directional => {
+                needs(self, &d.direction, "direction");
+                for (span, key) in [
+                    (d.position.as_ref().map(Spanned::span), "position"),
+                    (d.radius.as_ref().map(Spanned::span), "radius"),
+                    (d.samples.as_ref().map(Spanned::span), "samples"),
+                ] {
+                    reject(self, span, key);
+                }
+                if d.falloff == Some(FalloffDesc::InverseSquare) {
+                    self.error(
+                        desc.span(),
+                        format!("{label}: a directional light has no distance falloff"),
+                    );
+                }
+                LightShape::Directional {
+                    direction: self.direction(d.direction.as_ref()?, "direction"),
+                }
+            }
+        };
+        Some(Light {
+            shape,
+            radiance,
+            inverse_square: d.falloff == Some(FalloffDesc::InverseSquare),
+        })
+    }
+
+    fn object(
+        &mut self,
+        index: usize,
+        desc: &Spanned<ObjectDesc>,
+        materials: &BTreeMap<&str, u32>,
+    ) -> Option<Primitive> {
+        let d = desc.get_ref();
+        let kind = *d.kind.get_ref();
+        let label = match &d.name {
+            Some(n) => format!("object `{n}` (objects[{index}])"),
+            None => format!("objects[{index}]"),
+        };
+        let kind_name = format!("{kind:?}").to_lowercase();
+        let material = match materials.get(d.material.get_ref().as_str()) {
+            Some(&m) => Some(m),
+            None => {
+                let known: Vec<_> = materials.keys().map(|k| format!("`{k}`")).collect();
+                let known = if known.is_empty() {
+                    "none is defined".to_string()
+                } else {
+                    known.join(", ")
+                };
+                self.error(
+                    d.material.span(),
+                    format!(
+                        "{label}: unknown material `{}`; known: {known}",
+                        d.material.get_ref()
+                    ),
+                );
+                None
+            }
+        };
+        let transform = self.transform(d.transform.as_deref().unwrap_or_default(), &label);
+        // Keys that belong to other kinds of object.
+        let allowed: &[&str] = match kind {
+            ObjectKind::Sphere => &["center", "radius"],
+            ObjectKind::Plane => &["normal", "distance", "point"],
+            ObjectKind::Polygon => &["vertices"],
+        };
+        let present = [
+            ("center", d.center.as_ref().map(Spanned::span)),
+            ("radius", d.radius.as_ref().map(Spanned::span)),
+            ("normal", d.normal.as_ref().map(Spanned::span)),
+            ("distance", d.distance.as_ref().map(Spanned::span)),
+            ("point", d.point.as_ref().map(Spanned::span)),
+            ("vertices", d.vertices.as_ref().map(Spanned::span)),
+        ];
+        for (key, span) in present {
+            if let Some(span) = span.filter(|_| !allowed.contains(&key)) {
+                self.error(
+                    span,
+                    format!("{label}: `{key}` does not apply to a {kind_name}"),
+                );
+            }
+        }
+        let shape = match kind {
+            ObjectKind::Sphere => {
+                let center = d
+                    .center
+                    .as_ref()
+                    .map_or(DVec3::ZERO, |c| self.vector(c, "center"));
+                let radius = self.number(&d.radius, 1.0, "radius", POSITIVE);
+                let transform = transform?;
+                match transform.uniform_scale() {
+                    Some(s) => Shape::Sphere(Sphere {
+                        center: transform.point(center),
+                        radius: radius * s,
+                    }),
+                    None => {
+                        let local = DAffine3::from_scale_rotation_translation(
+                            DVec3::splat(radius),
+                            DQuat::IDENTITY,
+                            center,
+                        );
+                        Shape::Ellipsoid(Ellipsoid {
+                            transform: Transform::from_affine(transform.to_world * local)?,
+                        })
+                    }
+                }
+            }
+            ObjectKind::Plane => {
+                let Some(normal_desc) = &d.normal else {
+                    self.error(desc.span(), format!("{label}: a plane needs `normal`"));
+                    return None;
+                };
+                let normal = self.direction(normal_desc, "normal");
+                let point = match (&d.distance, &d.point) {
+                    (Some(dist), Some(p)) => {
+                        self.error(
+                            p.span(),
+                            format!("{label}: give `distance` or `point`, not both"),
+                        );
+                        normal * *dist.get_ref()
+                    }
+                    (Some(_), None) => normal * self.number(&d.distance, 0.0, "distance", ANY),
+                    (None, Some(p)) => self.vector(p, "point"),
+                    (None, None) => DVec3::ZERO,
+                };
+                let transform = transform?;
+                Shape::Plane(Plane::through(
+                    transform.point(point),
+                    transform.normal(normal),
+                ))
+            }
+            ObjectKind::Polygon => {
+                let Some(vertices) = &d.vertices else {
+                    self.error(desc.span(), format!("{label}: a polygon needs `vertices`"));
+                    return None;
+                };
+                let transform = transform?;
+                let world = vertices
+                    .get_ref()
+                    .iter()
+                    .map(|v| transform.point(DVec3::from_array(*v)))
+                    .collect();
+                match Polygon::new(world) {
+                    Ok(p) => Shape::Polygon(p),
+                    Err(e) => {
+                        self.error(vertices.span(), format!("{label}: {e}"));
+                        return None;
+                    }
+                }
+            }
+        };
+        Some(Primitive {
+            shape,
+            material: material?,
+        })
+    }
+
+    /// The steps composed in order: the first step acts on the object first.
+    fn transform(&mut self, ops: &[Spanned<TransformOp>], label: &str) -> Option<Transform> {
+        let mut m = DAffine3::IDENTITY;
+        let mut ok = true;
+        for op in ops {
+            let step = match op.get_ref() {
+                TransformOp::Translate(t) => {
+                    Some(DAffine3::from_translation(DVec3::from_array(*t)))
+                }
+                TransformOp::Rotate { axis, degrees } => DVec3::from_array(*axis)
+                    .try_normalize()
+                    .map(|a| DAffine3::from_axis_angle(a, degrees.to_radians())),
+                TransformOp::Scale(s) => Some(DAffine3::from_scale(DVec3::from_array(s.0))),
+                TransformOp::Matrix(rows) => {
+                    let m4 = DMat4::from_cols_array_2d(rows).transpose();
+                    (m4.row(3) == DVec4::W).then(|| DAffine3 {
+                        matrix3: DMat3::from_mat4(m4),
+                        translation: m4.w_axis.truncate(),
+                    })
+                }
+            };
+            match step.filter(DAffine3::is_finite) {
+                Some(s) if Transform::from_affine(s).is_some() => m = s * m,
+                _ => {
+                    ok = false;
+                    self.error(
+                        op.span(),
+                        format!(
+                            "{label}: invalid transform step; expected finite values, a non-zero rotation axis, \
+                             a non-zero scale and a matrix whose last row is [0, 0, 0, 1]"
+                        ),
+                    );
+                }
+            }
+        }
+        if !ok {
+            return None;
+        }
+        Transform::from_affine(m).or_else(|| {
+            self.error(ops[0].span(), format!("{label}: the transform is singular"));
+            None
+        })
+    }
+}
+
+const ANY: (fn(f64) -> bool, &str) = (|_| true, "a number");
+const POSITIVE: (fn(f64) -> bool, &str) = (|x| x > 0.0, "greater than 0");
+const NON_NEGATIVE: (fn(f64) -> bool, &str) = (|x| x >= 0.0, "at least 0");
+const UNIT_INTERVAL: (fn(f64) -> bool, &str) = (|x| (0.0..=1.0).contains(&x), "between 0 and 1");

@@ -1,0 +1,291 @@
+//! The scene file format: these serde structs *are* the format (TOML).
+//! Unknown keys are refused; values keep their source spans so the
+//! validation pass can point at them. docs/scene-format.md documents every key.
+
+use std::collections::BTreeMap;
+
+use serde::Deserialize;
+use toml::Spanned;
+
+/// Three numbers: a point, a vector or an RGB colour.
+pub type Triple = Spanned<[f64; 3]>;
+/// A number with its span.
+pub type Number = Spanned<f64>;
+
+/// The whole file, section by section.
+#[derive(Debug, Default)]
+pub struct SceneFile {
+    /// `[render]`.
+    pub render: RenderDesc,
+    /// `[camera]`.
+    pub camera: Option<Spanned<CameraDesc>>,
+    /// `[materials.NAME]`.
+    pub materials: BTreeMap<String, Spanned<MaterialDesc>>,
+    /// `[lights.NAME]`.
+    pub lights: BTreeMap<String, Spanned<LightDesc>>,
+    /// `[[objects]]`.
+    pub objects: Vec<Spanned<ObjectDesc>>,
+}
+
+/// `[render]`: image and tracing settings.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderDesc {
+    /// Image width in pixels.
+    pub width: Option<Spanned<u32>>,
+    /// Image height in pixels.
+    pub height: Option<Spanned<u32>>,
+    /// Samples per pixel.
+    pub spp: Option<Spanned<u32>>,
+    /// Longest ray path, counting the camera ray.
+    pub max_depth: Option<Spanned<u32>>,
+    /// Adaptive depth threshold.
+    pub min_weight: Option<Number>,
+    /// Colour of rays that hit nothing.
+    pub background: Option<Triple>,
+    /// Ambient light Ia.
+    pub ambient: Option<Triple>,
+    /// Random seed.
+    pub seed: Option<Spanned<u64>>,
+    /// Let transparent objects pass light to shadow feelers.
+    pub transparent_shadows: Option<bool>,
+}
+
+/// Camera projections.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum CameraKind {
+    /// Pinhole.
+    #[default]
+    Perspective,
+    /// Parallel rays.
+    Orthographic,
+}
+
+/// Which axis `fov` spans.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum FovAxisDesc {
+    /// Image height.
+    Vertical,
+    /// Image width.
+    Horizontal,
+}
+
+/// `[camera]`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraDesc {
+    /// Projection.
+    #[serde(rename = "type", default)]
+    pub kind: CameraKind,
+    /// Eye position.
+    pub position: Triple,
+    /// Point looked at.
+    pub look_at: Triple,
+    /// Up direction.
+    pub up: Option<Triple>,
+    /// Field of view in degrees (perspective).
+    pub fov: Option<Number>,
+    /// Axis of `fov`.
+    pub fov_axis: Option<FovAxisDesc>,
+    /// Height of the view in world units (orthographic).
+    pub view_height: Option<Number>,
+}
+
+/// `fresnel = ...`.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum FresnelDesc {
+    /// Classic kr/kt.
+    Off,
+    /// Exact dielectric Fresnel.
+    Exact,
+    /// Schlick's approximation.
+    Schlick,
+}
+
+/// `highlight = ...`.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum HighlightDesc {
+    /// Phong (R·V).
+    Phong,
+    /// Blinn-Phong (N·H).
+    Blinn,
+}
+
+/// `checker = { color = [...], size = ... }`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CheckerDesc {
+    /// Colour of the odd cells (the material's `color` fills the even ones).
+    pub color: Triple,
+    /// Cell side in world units.
+    pub size: Option<Number>,
+}
+
+/// `[materials.NAME]`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialDesc {
+    /// Surface colour Od.
+    pub color: Option<Triple>,
+    /// Checkerboard texture.
+    pub checker: Option<Spanned<CheckerDesc>>,
+    /// Ambient coefficient.
+    pub ka: Option<Number>,
+    /// Diffuse coefficient.
+    pub kd: Option<Number>,
+    /// Specular coefficient.
+    pub ks: Option<Number>,
+    /// Phong exponent.
+    pub shininess: Option<Number>,
+    /// Reflection weight.
+    pub kr: Option<Number>,
+    /// Transmission weight.
+    pub kt: Option<Number>,
+    /// Index of refraction.
+    pub ior: Option<Number>,
+    /// Fresnel mode.
+    pub fresnel: Option<FresnelDesc>,
+    /// Highlight model.
+    pub highlight: Option<HighlightDesc>,
+}
+
+/// Light kinds.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum LightKind {
+    /// A point.
+    Point,
+    /// Parallel light.
+    Directional,
+    /// A sphere with volume.
+    Sphere,
+}
+
+/// `falloff = ...`.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum FalloffDesc {
+    /// Constant with distance.
+    None,
+    /// 1/d².
+    InverseSquare,
+}
+
+/// `[lights.NAME]`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LightDesc {
+    /// Kind of light.
+    #[serde(rename = "type")]
+    pub kind: Spanned<LightKind>,
+    /// Position (point) or centre (sphere).
+    pub position: Option<Triple>,
+    /// Direction the light travels (directional).
+    pub direction: Option<Triple>,
+    /// Radius (sphere).
+    pub radius: Option<Number>,
+    /// Shadow feelers per shading point (sphere).
+    pub samples: Option<Spanned<u32>>,
+    /// Colour.
+    pub color: Option<Triple>,
+    /// Multiplier of the colour.
+    pub intensity: Option<Number>,
+    /// Distance falloff.
+    pub falloff: Option<FalloffDesc>,
+}
+
+/// Object kinds.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum ObjectKind {
+    /// Sphere (ellipsoid when non-uniformly scaled).
+    Sphere,
+    /// Infinite plane.
+    Plane,
+    /// Planar polygon.
+    Polygon,
+}
+
+/// `[[objects]]`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectDesc {
+    /// Kind of object.
+    #[serde(rename = "type")]
+    pub kind: Spanned<ObjectKind>,
+    /// Optional name used in messages.
+    pub name: Option<String>,
+    /// Name of a material.
+    pub material: Spanned<String>,
+    /// Sphere centre.
+    pub center: Option<Triple>,
+    /// Sphere radius.
+    pub radius: Option<Number>,
+    /// Plane normal.
+    pub normal: Option<Triple>,
+    /// Plane distance from the origin along the normal.
+    pub distance: Option<Number>,
+    /// A point on the plane (instead of `distance`).
+    pub point: Option<Triple>,
+    /// Polygon vertices.
+    pub vertices: Option<Spanned<Vec<[f64; 3]>>>,
+    /// Transform, applied first to last.
+    pub transform: Option<Vec<Spanned<TransformOp>>>,
+}
+
+/// One step of an object transform.
+#[derive(Debug, Deserialize)]
+#[serde(rename_all = "lowercase", deny_unknown_fields)]
+pub enum TransformOp {
+    /// `{ translate = [x, y, z] }`.
+    Translate([f64; 3]),
+    /// `{ rotate = { axis = [x, y, z], degrees = a } }`.
+    Rotate {
+        /// Rotation axis.
+        axis: [f64; 3],
+        /// Angle, counter-clockwise looking down the axis.
+        degrees: f64,
+    },
+    /// `{ scale = s }` or `{ scale = [x, y, z] }`.
+    Scale(ScaleDesc),
+    /// `{ matrix = [[...], [...], [...], [...]] }`: row-major 4×4 acting on
+    /// column vectors; the last row must be [0, 0, 0, 1].
+    Matrix([[f64; 4]; 4]),
+}
+
+/// A uniform or per-axis scale.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScaleDesc(pub [f64; 3]);
+
+impl<'de> Deserialize<'de> for ScaleDesc {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = ScaleDesc;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a number or an array of 3 numbers")
+            }
+            fn visit_f64<E>(self, v: f64) -> Result<ScaleDesc, E> {
+                Ok(ScaleDesc([v; 3]))
+            }
+            fn visit_i64<E>(self, v: i64) -> Result<ScaleDesc, E> {
+                Ok(ScaleDesc([v as f64; 3]))
+            }
+            fn visit_u64<E>(self, v: u64) -> Result<ScaleDesc, E> {
+                Ok(ScaleDesc([v as f64; 3]))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                seq: A,
+            ) -> Result<ScaleDesc, A::Error> {
+                let v = <[f64; 3]>::deserialize(serde::de::value::SeqAccessDeserializer::new(seq))?;
+                Ok(ScaleDesc(v))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}

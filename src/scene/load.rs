@@ -1,0 +1,100 @@
+//! TOML text → [`SceneFile`], section by section, so that one bad material
+//! or object does not hide the problems of the others.
+
+use serde::de::DeserializeOwned;
+use toml::Spanned;
+use toml::de::{DeTable, DeValue, ValueDeserializer};
+
+use super::error::Diagnostics;
+use super::format::SceneFile;
+
+const SECTIONS: &str = "`render`, `camera`, `materials`, `lights` or `objects`";
+
+/// Parses `source` into sections, recording every problem found in `diags`.
+/// Returns `None` for a syntax error (nothing after it can be trusted).
+pub fn parse(source: &str, diags: &mut Diagnostics) -> Option<SceneFile> {
+    let (doc, errors) = DeTable::parse_recoverable(source);
+    if !errors.is_empty() {
+        for e in errors {
+            diags.error(e.span().unwrap_or(0..0), e.message().to_string());
+        }
+        return None;
+    }
+    let mut file = SceneFile::default();
+    for (key, value) in doc.get_ref() {
+        match key.get_ref().as_ref() {
+            "render" => file.render = deserialize(value, diags).unwrap_or_default(),
+            "camera" => file.camera = deserialize(value, diags),
+            "materials" => {
+                for (name, v) in named_entries(value, "materials", diags) {
+                    if let Some(m) = deserialize(v, diags) {
+                        file.materials.insert(name, m);
+                    }
+                }
+            }
+            "lights" => {
+                for (name, v) in named_entries(value, "lights", diags) {
+                    if let Some(l) = deserialize(v, diags) {
+                        file.lights.insert(name, l);
+                    }
+                }
+            }
+            "objects" => match value.get_ref() {
+                DeValue::Array(items) => {
+                    file.objects = items.iter().filter_map(|v| deserialize(v, diags)).collect();
+                }
+                other => diags.error(
+                    value.span(),
+                    format!(
+                        "`objects` must be an array of tables ([[objects]]), found {}",
+                        other.type_str()
+                    ),
+                ),
+            },
+            other => diags.error(
+                key.span(),
+                format!("unknown section `{other}`, expected {SECTIONS}"),
+            ),
+        }
+    }
+    Some(file)
+}
+
+/// The entries of a `[section.NAME]` table.
+fn named_entries<'a, 'i>(
+    value: &'a Spanned<DeValue<'i>>,
+    section: &str,
+    diags: &mut Diagnostics,
+) -> Vec<(String, &'a Spanned<DeValue<'i>>)> {
+    match value.get_ref() {
+        DeValue::Table(t) => t
+            .iter()
+            .map(|(k, v)| (k.get_ref().to_string(), v))
+            .collect(),
+        other => {
+            diags.error(
+                value.span(),
+                format!(
+                    "`{section}` must be a table of named entries ([{section}.NAME]), found {}",
+                    other.type_str()
+                ),
+            );
+            Vec::new()
+        }
+    }
+}
+
+/// Deserializes one value, recording the error (with its span, or the
+/// value's span when serde gives none) on failure.
+fn deserialize<T: DeserializeOwned>(
+    value: &Spanned<DeValue<'_>>,
+    diags: &mut Diagnostics,
+) -> Option<T> {
+    match T::deserialize(ValueDeserializer::from(value.clone())) {
+        Ok(v) => Some(v),
+        Err(e) => {
+            diags.error(e.span().unwrap_or(value.span()), e.message().to_string());
+            None
+        }
+    }
+}
