@@ -1,7 +1,7 @@
 //! [`SceneFile`] → runtime [`Scene`]: every value checked, every problem
 //! reported with its span, object transforms applied.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::ops::Range;
 
 use glam::{DAffine3, DMat3, DMat4, DQuat, DVec3, DVec4};
@@ -34,6 +34,8 @@ pub fn build(file: SceneFile, file_span: Range<usize>, diags: &mut Diagnostics) 
         .map_or(DVec3::splat(0.1), |v| c.color(v, "ambient"));
     let camera = match &file.camera {
         Some(desc) => c.camera(desc),
+        // A [camera] that failed to parse is already reported.
+        None if file.unparsed.contains("camera") => None,
         None => {
             c.diags.error(
                 file_span.start..file_span.start,
@@ -57,7 +59,7 @@ pub fn build(file: SceneFile, file_span: Range<usize>, diags: &mut Diagnostics) 
         .objects
         .iter()
         .enumerate()
-        .filter_map(|(i, o)| c.object(i, o, &material_index))
+        .filter_map(|(i, o)| c.object(i, o, &material_index, &file.unparsed))
         .collect();
     if !c.diags.is_empty() {
         return None;
@@ -249,7 +251,7 @@ impl Check<'_, '_> {
                 span,
                 format!(
                     "material `{name}`: kr + kt = {} exceeds 1, which would create light",
-                    kr + kt
+                    short(kr + kt)
                 ),
             );
         }
@@ -357,6 +359,7 @@ impl Check<'_, '_> {
         index: usize,
         desc: &Spanned<ObjectDesc>,
         materials: &BTreeMap<&str, u32>,
+        unparsed: &BTreeSet<String>,
     ) -> Option<Primitive> {
         let d = desc.get_ref();
         let kind = *d.kind.get_ref();
@@ -367,6 +370,8 @@ impl Check<'_, '_> {
         let kind_name = format!("{kind:?}").to_lowercase();
         let material = match materials.get(d.material.get_ref().as_str()) {
             Some(&m) => Some(m),
+            // Its own error is already reported.
+            None if unparsed.contains(&format!("materials.{}", d.material.get_ref())) => None,
             None => {
                 let known: Vec<_> = materials.keys().map(|k| format!("`{k}`")).collect();
                 let known = if known.is_empty() {
@@ -531,3 +536,9 @@ const ANY: (fn(f64) -> bool, &str) = (|_| true, "a number");
 const POSITIVE: (fn(f64) -> bool, &str) = (|x| x > 0.0, "greater than 0");
 const NON_NEGATIVE: (fn(f64) -> bool, &str) = (|x| x >= 0.0, "at least 0");
 const UNIT_INTERVAL: (fn(f64) -> bool, &str) = (|x| (0.0..=1.0).contains(&x), "between 0 and 1");
+
+/// A number for messages: at most 6 decimals, no float noise (1.3, not 1.2999999999999998).
+fn short(x: f64) -> String {
+    let s = format!("{x:.6}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}

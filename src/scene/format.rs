@@ -2,7 +2,7 @@
 //! Unknown keys are refused; values keep their source spans so the
 //! validation pass can point at them. docs/scene-format.md documents every key.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 use serde::Deserialize;
 use toml::Spanned;
@@ -21,6 +21,10 @@ pub struct SceneFile {
     pub camera: Option<Spanned<CameraDesc>>,
     /// `[materials.NAME]`.
     pub materials: BTreeMap<String, Spanned<MaterialDesc>>,
+    /// Entries present in the file that failed to parse and are already
+    /// reported (`camera`, `materials.NAME`): what refers to them gets no
+    /// second error.
+    pub unparsed: BTreeSet<String>,
     /// `[lights.NAME]`.
     pub lights: BTreeMap<String, Spanned<LightDesc>>,
     /// `[[objects]]`.

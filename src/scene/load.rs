@@ -24,11 +24,18 @@ pub fn parse(source: &str, diags: &mut Diagnostics) -> Option<SceneFile> {
     for (key, value) in doc.get_ref() {
         match key.get_ref().as_ref() {
             "render" => file.render = deserialize(value, diags).unwrap_or_default(),
-            "camera" => file.camera = deserialize(value, diags),
+            "camera" => {
+                file.camera = deserialize(value, diags);
+                if file.camera.is_none() {
+                    file.unparsed.insert("camera".into());
+                }
+            }
             "materials" => {
                 for (name, v) in named_entries(value, "materials", diags) {
                     if let Some(m) = deserialize(v, diags) {
                         file.materials.insert(name, m);
+                    } else {
+                        file.unparsed.insert(format!("materials.{name}"));
                     }
                 }
             }

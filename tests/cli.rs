@@ -1,0 +1,296 @@
+//! The `prism` command end to end: bad input gives a located message and
+//! exit code 2 and touches no output file; good input renders.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn prism(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_prism"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("prism runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+const GOOD: &str = r#"
+[render]
+width = 8
+height = 6
+spp = 1
+
+[camera]
+position = [0, 0, 5]
+look_at = [0, 0, 0]
+
+[materials.red]
+color = [1, 0, 0]
+
+[lights.key]
+type = "point"
+position = [2, 4, 5]
+
+[[objects]]
+type = "sphere"
+material = "red"
+radius = 1
+"#;
+
+/// Writes `scene`, renders it over an existing `out.png`, and checks the
+/// failure: exit code 2, a message containing `line:col` and `expected`,
+/// the old output untouched and no stray files.
+fn assert_rejected(scene: &str, location: &str, expected: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.toml"), scene).unwrap();
+    let out: PathBuf = dir.path().join("out.png");
+    std::fs::write(&out, b"previous image").unwrap();
+    let o = prism(&["render", "scene.toml", "-o", "out.png"], dir.path());
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains(&format!("scene.toml:{location}: error:")),
+        "want {location}: {err}"
+    );
+    assert!(err.contains(expected), "want {expected:?}: {err}");
+    assert!(
+        !err.contains("panicked") && !err.contains("backtrace"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&out).unwrap(), b"previous image");
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        2,
+        "no stray files"
+    );
+    // `check` agrees.
+    let c = prism(&["check", "scene.toml"], dir.path());
+    assert_eq!(c.status.code(), Some(2));
+    assert_eq!(stderr(&c), err);
+}
+
+#[test]
+fn good_scene_renders_and_checks() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.toml"), GOOD).unwrap();
+    let c = prism(&["check", "scene.toml"], dir.path());
+    assert_eq!(c.status.code(), Some(0), "{}", stderr(&c));
+    for name in ["a.png", "a.exr", "a.hdr", "a.ppm"] {
+        let o = prism(
+            &["render", "scene.toml", "-o", name, "--threads", "2"],
+            dir.path(),
+        );
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let img = image::open(dir.path().join(name)).unwrap();
+        assert_eq!((img.width(), img.height()), (8, 6));
+        // Summary line: resolution, rays by kind, Mrays/s.
+        let err = stderr(&o);
+        assert!(
+            err.contains("8x6")
+                && err.contains("camera")
+                && err.contains("shadow")
+                && err.contains("Mrays/s"),
+            "{err}"
+        );
+    }
+    // Command-line values override the file's.
+    let o = prism(
+        &[
+            "render",
+            "scene.toml",
+            "-o",
+            "b.png",
+            "--width",
+            "5",
+            "--height",
+            "3",
+            "--quiet",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0));
+    assert!(o.stderr.is_empty(), "--quiet prints nothing");
+    let img = image::open(dir.path().join("b.png")).unwrap();
+    assert_eq!((img.width(), img.height()), (5, 3));
+}
+
+#[test]
+fn demo_scene_renders_without_a_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = prism(
+        &[
+            "render", "-o", "demo.png", "--width", "32", "--height", "24",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let img = image::open(dir.path().join("demo.png")).unwrap().to_rgb8();
+    // Not a blank picture: many distinct colours (floor checks, sky, glass).
+    let mut colours: Vec<[u8; 3]> = img.pixels().map(|p| p.0).collect();
+    colours.sort();
+    colours.dedup();
+    assert!(colours.len() > 50, "{} colours", colours.len());
+}
+
+#[test]
+fn unknown_key_is_refused() {
+    assert_rejected(
+        &GOOD.replace("radius = 1", "raduis = 1"),
+        "21:1",
+        "unknown field `raduis`, expected",
+    );
+}
+
+#[test]
+fn wrong_type_is_refused() {
+    assert_rejected(
+        &GOOD.replace("width = 8", "width = \"eight\""),
+        "3:9",
+        "expected u32",
+    );
+}
+
+#[test]
+fn missing_required_field_is_refused() {
+    assert_rejected(
+        &GOOD.replace("material = \"red\"", ""),
+        "18:1",
+        "missing field `material`",
+    );
+    assert_rejected(
+        &GOOD.replace("look_at = [0, 0, 0]", ""),
+        "7:1",
+        "missing field `look_at`",
+    );
+}
+
+#[test]
+fn negative_radius_is_refused() {
+    assert_rejected(
+        &GOOD.replace("radius = 1", "radius = -1"),
+        "21:10",
+        "`radius` must be greater than 0, got -1",
+    );
+}
+
+#[test]
+fn non_positive_ior_is_refused() {
+    assert_rejected(
+        &GOOD.replace("color = [1, 0, 0]", "ior = 0"),
+        "12:7",
+        "`ior` must be greater than 0",
+    );
+}
+
+#[test]
+fn coefficients_that_create_light_are_refused() {
+    assert_rejected(
+        &GOOD.replace("color = [1, 0, 0]", "kr = 0.7\nkt = 0.6"),
+        "13:6",
+        "kr + kt = 1.3 exceeds 1",
+    );
+    assert_rejected(
+        &GOOD.replace("color = [1, 0, 0]", "kd = -0.5"),
+        "12:6",
+        "`kd` must be at least 0",
+    );
+}
+
+#[test]
+fn nan_and_infinity_are_refused() {
+    assert_rejected(
+        &GOOD.replace("color = [1, 0, 0]", "ks = nan"),
+        "12:6",
+        "`ks` must be a finite number",
+    );
+    assert_rejected(
+        &GOOD.replace("position = [2, 4, 5]", "position = [2, inf, 5]"),
+        "16:12",
+        "finite numbers",
+    );
+}
+
+#[test]
+fn unknown_material_is_refused() {
+    assert_rejected(
+        &GOOD.replace("material = \"red\"", "material = \"blue\""),
+        "20:12",
+        "unknown material `blue`; known: `red`",
+    );
+}
+
+#[test]
+fn bad_polygons_are_refused() {
+    let polygon = |v: &str| {
+        GOOD.replace("type = \"sphere\"", "type = \"polygon\"\nname = \"wall\"")
+            .replace("radius = 1", &format!("vertices = {v}"))
+    };
+    assert_rejected(
+        &polygon("[[0, 0, 0], [1, 0, 0]]"),
+        "22:12",
+        "object `wall` (objects[0]): a polygon needs at least 3 vertices, got 2",
+    );
+    assert_rejected(
+        &polygon("[[0, 0, 0], [1, 0, 0], [2, 0, 0]]"),
+        "22:12",
+        "collinear",
+    );
+    assert_rejected(
+        &polygon("[[0, 0, 0], [1, 0, 0], [1, 0, 0], [0, 1, 0]]"),
+        "22:12",
+        "vertices 1 and 2 coincide",
+    );
+    assert_rejected(
+        &polygon("[[0, 0, 0], [1, 0, 0], [1, 1, 0.5], [0, 1, 0]]"),
+        "22:12",
+        "off the polygon's plane",
+    );
+}
+
+#[test]
+fn syntax_error_is_refused() {
+    assert_rejected(&GOOD.replace("[camera]", "[camera"), "7:8", "expected `]`");
+}
+
+#[test]
+fn every_problem_is_reported_at_once() {
+    let scene = GOOD
+        .replace("radius = 1", "radius = -1")
+        .replace("color = [1, 0, 0]", "ior = -2")
+        .replace("spp = 1", "spp = 0");
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.toml"), scene).unwrap();
+    let o = prism(&["check", "scene.toml"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    let err = stderr(&o);
+    assert_eq!(err.lines().count(), 3, "{err}");
+    assert!(
+        err.contains("`spp` must be at least 1")
+            && err.contains("`ior`")
+            && err.contains("`radius`")
+    );
+}
+
+#[test]
+fn bad_output_and_missing_scene_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.toml"), GOOD).unwrap();
+    let o = prism(&["render", "scene.toml", "-o", "out.jpg"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("unknown image format"));
+    let o = prism(
+        &["render", "scene.toml", "-o", "no/such/dir/out.png"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("does not exist"));
+    let o = prism(&["render", "missing.toml", "-o", "out.png"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("missing.toml: cannot read the scene"));
+    let o = prism(&["render", "scene.toml", "--spp", "0"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    // Nothing was written by any of these.
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+}

@@ -1,0 +1,405 @@
+//! Renders checked by properties a physicist would check: areas, shadows
+//! without or with penumbra, invisibility of index-matched glass,
+//! symmetry, and determinism across thread counts.
+
+use glam::DVec3;
+use prism::render::{Film, render_pixel};
+use prism::shading::whitted::{Whitted, WhittedSettings};
+use prism::{RenderSettings, Scene, render};
+
+fn scene(toml: &str) -> Scene {
+    Scene::from_toml(toml, "test").unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn film(scene: &Scene, threads: usize) -> Film {
+    let settings = RenderSettings {
+        threads: Some(threads),
+        ..scene.settings
+    };
+    render(scene, &settings, &|_| {}).unwrap().film
+}
+
+/// A unit-radius object seen from above by an orthographic camera 4 units
+/// wide, lit only by ambient light: white on black.
+fn silhouette_scene(object: &str) -> String {
+    format!(
+        r#"
+        [render]
+        width = 200
+        height = 200
+        spp = 1
+        ambient = [1, 1, 1]
+        [camera]
+        type = "orthographic"
+        position = [0, 0, 10]
+        look_at = [0, 0, 0]
+        view_height = 4
+        [materials.white]
+        ka = 1
+        kd = 0
+        [[objects]]
+        material = "white"
+        {object}
+        "#
+    )
+}
+
+fn covered_area(film: &Film, world_width: f64) -> f64 {
+    let pixel = world_width / f64::from(film.width());
+    let lit = film.pixels().iter().filter(|p| p.x > 0.5).count();
+    lit as f64 * pixel * pixel
+}
+
+#[test]
+fn sphere_silhouette_has_area_pi_r_squared() {
+    let s = scene(&silhouette_scene("type = \"sphere\"\nradius = 1"));
+    let area = covered_area(&film(&s, 2), 4.0);
+    let expected = std::f64::consts::PI;
+    assert!((area - expected).abs() / expected < 0.005, "area {area}");
+}
+
+#[test]
+fn non_uniformly_scaled_sphere_is_an_ellipse_of_area_pi_a_b() {
+    let s = scene(&silhouette_scene(
+        "type = \"sphere\"\nradius = 1\ntransform = [{ scale = [1.8, 0.6, 1] }, { rotate = { axis = [0, 0, 1], degrees = 30 } }]",
+    ));
+    let area = covered_area(&film(&s, 2), 4.0);
+    let expected = std::f64::consts::PI * 1.8 * 0.6;
+    assert!((area - expected).abs() / expected < 0.01, "area {area}");
+}
+
+#[test]
+fn concave_polygon_covers_its_shoelace_area() {
+    // A five-pointed star with inner radius 0.6 and outer radius 1.5.
+    let mut vertices = Vec::new();
+    for i in 0..10 {
+        let r = if i % 2 == 0 { 1.5 } else { 0.6 };
+        let a = std::f64::consts::FRAC_PI_2 + i as f64 * std::f64::consts::PI / 5.0;
+        vertices.push([r * a.cos(), r * a.sin(), 0.0]);
+    }
+    let shoelace: f64 = (0..10)
+        .map(|i| {
+            let (a, b) = (vertices[i], vertices[(i + 1) % 10]);
+            0.5 * (a[0] * b[1] - b[0] * a[1])
+        })
+        .sum();
+    let list: Vec<String> = vertices
+        .iter()
+        .map(|v| format!("[{}, {}, {}]", v[0], v[1], v[2]))
+        .collect();
+    let s = scene(&silhouette_scene(&format!(
+        "type = \"polygon\"\nvertices = [{}]",
+        list.join(", ")
+    )));
+    let area = covered_area(&film(&s, 2), 4.0);
+    assert!(
+        (area - shoelace).abs() / shoelace < 0.01,
+        "area {area}, shoelace {shoelace}"
+    );
+}
+
+const STRIP_PIXELS: u32 = 161;
+/// World width of the floor strip the shadow tests look at.
+const STRIP_WIDTH: f64 = 8.0;
+
+/// A ball of radius 0.5 at height 2 over a floor, the floor seen from
+/// straight above as a strip one pixel tall through the shadow's centre,
+/// lit by `light` (a light table's body). `ball` is the ball's material
+/// table body, or `None` for no ball.
+fn shadow_scene(light: &str, ball: Option<&str>) -> Scene {
+    let ball = match ball {
+        Some(m) => format!(
+            "[materials.ball]\n{m}\n[[objects]]\ntype = \"sphere\"\nmaterial = \"ball\"\ncenter = [0, 2, 0]\nradius = 0.5\n"
+        ),
+        None => String::new(),
+    };
+    scene(&format!(
+        r#"
+        [render]
+        width = {STRIP_PIXELS}
+        height = 1
+        spp = 1
+        ambient = [0.1, 0.1, 0.1]
+        [camera]
+        type = "orthographic"
+        position = [0, 1, 0]
+        look_at = [0, 0, 0]
+        up = [0, 0, -1]
+        view_height = {}
+        [materials.white]
+        ka = 1
+        kd = 0.8
+        [lights.lamp]
+        {light}
+        [[objects]]
+        type = "plane"
+        material = "white"
+        normal = [0, 1, 0]
+        distance = 0
+        {ball}
+        "#,
+        STRIP_WIDTH / f64::from(STRIP_PIXELS)
+    ))
+}
+
+/// The fraction of the light each floor pixel sees, left to right:
+/// (I − ambient) / (I_unblocked − ambient), which cancels the N·L and
+/// distance terms and leaves the visibility.
+fn visibility_profile(light: &str, ball: &str) -> Vec<f64> {
+    let shadowed = film(&shadow_scene(light, Some(ball)), 2);
+    let open = film(&shadow_scene(light, None), 2);
+    shadowed
+        .pixels()
+        .iter()
+        .zip(open.pixels())
+        .map(|(s, o)| (s.x - 0.1) / (o.x - 0.1))
+        .collect()
+}
+
+fn profile(light: &str) -> Vec<f64> {
+    visibility_profile(light, "kd = 0.8")
+}
+
+#[test]
+fn point_light_shadow_has_no_penumbra() {
+    let v = profile("type = \"point\"\nposition = [0, 6, 0]");
+    assert!(
+        v.iter().all(|&x| x == 0.0 || (x - 1.0).abs() < 1e-12),
+        "{v:?}"
+    );
+    // The shadow cone is tangent to the ball: half-angle asin(0.5/4), so
+    // the umbra on the floor 6 below the light is 2·6·tan(asin(1/8)) wide.
+    let umbra =
+        v.iter().filter(|&&x| x == 0.0).count() as f64 * STRIP_WIDTH / f64::from(STRIP_PIXELS);
+    let expected = 12.0 * (0.125f64).asin().tan();
+    assert!(
+        (umbra - expected).abs() < 2.0 * STRIP_WIDTH / f64::from(STRIP_PIXELS),
+        "umbra {umbra}, expected {expected}"
+    );
+}
+
+fn sphere_light(radius: f64) -> String {
+    format!("type = \"sphere\"\nposition = [0, 6, 0]\nradius = {radius}\nsamples = 64")
+}
+
+/// Pixels whose visibility is strictly between umbra and lit.
+fn penumbra_width(v: &[f64]) -> usize {
+    v.iter().filter(|&&x| x > 1e-9 && x < 1.0 - 1e-9).count()
+}
+
+#[test]
+fn sphere_light_penumbra_lies_between_umbra_and_lit_and_is_monotone() {
+    let v = profile(&sphere_light(0.3));
+    let centre = v.len() / 2;
+    assert_eq!(v[centre], 0.0, "umbra under the ball");
+    assert_eq!(v[0], 1.0, "fully lit far away");
+    assert!(v.iter().all(|&x| (0.0..=1.0 + 1e-12).contains(&x)));
+    assert!(penumbra_width(&v) >= 6, "a penumbra exists: {v:?}");
+    // From the centre outwards the visible fraction never decreases (beyond
+    // the noise of 64 stratified samples).
+    for side in [1i64, -1] {
+        let mut prev = 0.0;
+        for k in 0..=centre as i64 {
+            let x = v[(centre as i64 + side * k) as usize];
+            assert!(x >= prev - 0.03, "not monotone at offset {k}: {v:?}");
+            prev = prev.max(x);
+        }
+    }
+}
+
+#[test]
+fn penumbra_widens_with_light_radius() {
+    let widths: Vec<usize> = [0.1, 0.3, 0.6]
+        .iter()
+        .map(|&r| penumbra_width(&profile(&sphere_light(r))))
+        .collect();
+    assert!(widths[0] < widths[1] && widths[1] < widths[2], "{widths:?}");
+    // A radius-0 sphere light is a point light.
+    assert_eq!(penumbra_width(&profile(&sphere_light(0.0))), 0);
+}
+
+#[test]
+fn index_matched_glass_is_invisible() {
+    let base = r#"
+        [render]
+        width = 48
+        height = 32
+        spp = 1
+        background = [0.2, 0.3, 0.4]
+        [camera]
+        position = [0, 1, 6]
+        look_at = [0, 0.5, 0]
+        [materials.floor]
+        color = [1, 1, 0]
+        checker = { color = [1, 0, 0], size = 0.5 }
+        [materials.clear]
+        ka = 0
+        kd = 0
+        kt = 1
+        ior = 1
+        [lights.l]
+        type = "directional"
+        direction = [0.3, -1, -0.2]
+        [[objects]]
+        type = "plane"
+        material = "floor"
+        normal = [0, 1, 0]
+        "#;
+    let glass =
+        "[[objects]]\ntype = \"sphere\"\nmaterial = \"clear\"\ncenter = [0, 1, 0]\nradius = 0.9\n";
+    let without = film(&scene(base), 2);
+    let mut with = scene(&format!("{base}{glass}"));
+    // Classic shadows: the glass would block the light; let it through.
+    with.transparent_shadows = true;
+    let with = film(&with, 2);
+    for (a, b) in without.pixels().iter().zip(with.pixels()) {
+        assert!((*a - *b).abs().max_element() < 1e-6, "{a} vs {b}");
+    }
+}
+
+#[test]
+fn classic_shadows_are_cast_by_glass_too() {
+    let light = "type = \"point\"\nposition = [0, 6, 0]";
+    let glass = "ka = 0\nkd = 0\nkt = 0.9\nior = 1.5";
+    // By default every object blocks light, transparent ones included.
+    let v = visibility_profile(light, glass);
+    assert_eq!(v[v.len() / 2], 0.0);
+    // Opted in, the glass passes kt at each of its two surfaces.
+    let mut shadowed = shadow_scene(light, Some(glass));
+    shadowed.transparent_shadows = true;
+    let open = film(&shadow_scene(light, None), 2);
+    let through = film(&shadowed, 2);
+    let centre = STRIP_PIXELS / 2;
+    let fraction = (through.get(centre, 0).x - 0.1) / (open.get(centre, 0).x - 0.1);
+    assert!((fraction - 0.81).abs() < 1e-9, "{fraction}");
+}
+
+#[test]
+fn symmetric_scene_renders_symmetric() {
+    let s = scene(
+        r#"
+        [render]
+        width = 40
+        height = 30
+        spp = 1
+        [camera]
+        position = [0, 2, 6]
+        look_at = [0, 1, 0]
+        [materials.m]
+        ks = 0.5
+        kr = 0.3
+        [lights.l]
+        type = "point"
+        position = [0, 5, 5]
+        [[objects]]
+        type = "sphere"
+        material = "m"
+        center = [0, 1, 0]
+        [[objects]]
+        type = "plane"
+        material = "m"
+        normal = [0, 1, 0]
+        "#,
+    );
+    let f = film(&s, 2);
+    for y in 0..30 {
+        for x in 0..20 {
+            let (a, b) = (f.get(x, y), f.get(39 - x, y));
+            assert!((a - b).abs().max_element() < 1e-9, "({x}, {y}): {a} vs {b}");
+        }
+    }
+}
+
+#[test]
+fn image_is_bit_identical_for_any_thread_count_and_per_pixel() {
+    let mut s = Scene::demo();
+    s.settings.width = 64;
+    s.settings.height = 48;
+    s.settings.spp = 4;
+    s.lights[0].shape = prism::lights::LightShape::Sphere {
+        center: DVec3::new(4.0, 9.0, 7.0),
+        radius: 1.0,
+        samples: 9,
+    };
+    let one = film(&s, 1);
+    let two = film(&s, 2);
+    let three = film(&s, 3);
+    assert_eq!(one, two);
+    assert_eq!(one, three);
+    // Any pixel rendered on its own gives the same bits: regions of the
+    // image can be rendered apart and merged.
+    let settings = s.settings;
+    let tracer = Whitted::new(
+        &s,
+        WhittedSettings {
+            max_depth: settings.max_depth,
+            min_weight: settings.min_weight,
+        },
+    );
+    let mut stats = Default::default();
+    for (x, y) in [(0, 0), (33, 20), (63, 47)] {
+        assert_eq!(
+            render_pixel(&s, &tracer, &settings, x, y, &mut stats),
+            one.get(x, y)
+        );
+    }
+}
+
+/// Brute-force reference for the visible fraction of a sphere light (centre
+/// `light`, radius `radius`) from floor point `x` past a ball (`ball`,
+/// `ball_radius`): a fine grid on the plane through the light's centre,
+/// perpendicular to the axis, each grid point weighted by the solid angle it
+/// subtends from `x` (cos θ / r²), kept when its direction meets the light.
+/// Independent of the renderer's cone sampling.
+fn reference_visibility(x: DVec3, light: DVec3, radius: f64, ball: DVec3, ball_radius: f64) -> f64 {
+    use prism::geometry::sphere::sphere_roots;
+    let axis = (light - x).normalize();
+    let frame = prism::math::Frame::from_z(axis);
+    let distance = (light - x).length();
+    let half = radius * distance / (distance * distance - radius * radius).sqrt() * 1.01;
+    let n = 300;
+    let (mut total, mut seen) = (0.0, 0.0);
+    for i in 0..n {
+        for j in 0..n {
+            let a = (2.0 * (i as f64 + 0.5) / n as f64 - 1.0) * half;
+            let b = (2.0 * (j as f64 + 0.5) / n as f64 - 1.0) * half;
+            let p = light + a * frame.x + b * frame.y;
+            let d = p - x;
+            let r = d.length();
+            let dir = d / r;
+            let Some((t_light, _)) = sphere_roots(x, dir, light, radius) else {
+                continue;
+            };
+            let weight = dir.dot(axis) / (r * r);
+            total += weight;
+            let blocked = sphere_roots(x, dir, ball, ball_radius)
+                .is_some_and(|(t0, _)| t0 > 0.0 && t0 < t_light);
+            if !blocked {
+                seen += weight;
+            }
+        }
+    }
+    seen / total
+}
+
+#[test]
+fn penumbra_matches_a_brute_force_reference() {
+    let light = "type = \"sphere\"\nposition = [0, 6, 0]\nradius = 0.5\nsamples = 256";
+    let v = profile(light);
+    let pixel = STRIP_WIDTH / f64::from(STRIP_PIXELS);
+    let mut worst = 0.0f64;
+    for (i, &measured) in v.iter().enumerate().step_by(4) {
+        // The strip's pixel centres, from the left (−x) edge.
+        let x = DVec3::new((i as f64 + 0.5) * pixel - STRIP_WIDTH / 2.0, 0.0, 0.0);
+        let expected = reference_visibility(
+            x,
+            DVec3::new(0.0, 6.0, 0.0),
+            0.5,
+            DVec3::new(0.0, 2.0, 0.0),
+            0.5,
+        );
+        worst = worst.max((measured - expected).abs());
+    }
+    // 256 stratified samples: the error is a few percent at most.
+    assert!(worst < 0.03, "worst difference {worst}");
+}
