@@ -294,3 +294,28 @@ fn bad_output_and_missing_scene_are_refused() {
     // Nothing was written by any of these.
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
 }
+
+#[test]
+fn every_example_scene_checks_and_renders() {
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let dir = tempfile::tempdir().unwrap();
+    let mut count = 0;
+    for entry in std::fs::read_dir(&scenes).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "toml") {
+            continue;
+        }
+        count += 1;
+        let p = path.to_str().unwrap();
+        let c = prism(&["check", p], dir.path());
+        assert_eq!(c.status.code(), Some(0), "{p}: {}", stderr(&c));
+        let o = prism(
+            &[
+                "render", p, "-o", "x.png", "--width", "24", "--height", "16", "--spp", "1",
+            ],
+            dir.path(),
+        );
+        assert_eq!(o.status.code(), Some(0), "{p}: {}", stderr(&o));
+    }
+    assert!(count >= 5, "{count} scenes");
+}

@@ -19,8 +19,11 @@ use crate::scene::Scene;
 /// Nested media deeper than this are not tracked (the innermost are lost).
 const MAX_NESTING: usize = 8;
 
-/// The media a ray travels through: a stack of the transparent objects it has
-/// entered, innermost last. Outside everything the index is 1.
+/// The media a ray travels through: a stack of the materials of the
+/// transparent objects it has entered, innermost last; outside everything
+/// the index is 1. Keyed by material, not primitive, so a solid built of
+/// several faces (a glass prism of polygons) is one medium: the ray enters
+/// through one face and leaves through another.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Media {
     entered: [(u32, f64); MAX_NESTING],
@@ -46,10 +49,10 @@ impl Media {
         }
     }
 
-    /// After entering `primitive` of index `ior`.
-    pub fn entering(mut self, primitive: u32, ior: f64) -> Self {
+    /// After entering an object of `material` with index `ior`.
+    pub fn entering(mut self, material: u32, ior: f64) -> Self {
         if self.len < MAX_NESTING {
-            self.entered[self.len] = (primitive, ior);
+            self.entered[self.len] = (material, ior);
             self.len += 1;
         }
         self
@@ -145,10 +148,10 @@ impl<'a> Whitted<'a> {
             (
                 media.ior(),
                 material.ior,
-                media.entering(hit.primitive, material.ior),
+                media.entering(primitive.material, material.ior),
             )
         } else {
-            let outside = media.leaving(hit.primitive);
+            let outside = media.leaving(primitive.material);
             (material.ior, outside.ior(), outside)
         };
         let cos_i = view.dot(n);
