@@ -41,10 +41,10 @@ struct RenderArgs {
     #[arg(short, long, default_value = "render.png")]
     output: PathBuf,
     /// Image width in pixels (overrides the scene).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65535))]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     width: Option<u32>,
     /// Image height in pixels (overrides the scene).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65535))]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     height: Option<u32>,
     /// Samples per pixel (overrides the scene).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
@@ -134,6 +134,10 @@ fn render_command(args: &RenderArgs) -> ExitCode {
         threads: args.threads.map(|t| t as usize),
         ..scene.settings
     };
+    if let Err(e) = settings.check() {
+        eprintln!("error: {e}");
+        return ExitCode::from(BAD_INPUT);
+    }
     let threads = settings.threads.unwrap_or_else(rayon::current_num_threads);
     let pixels = u64::from(settings.width) * u64::from(settings.height);
     let bar = if args.quiet {

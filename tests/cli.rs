@@ -267,7 +267,7 @@ fn every_problem_is_reported_at_once() {
     let err = stderr(&o);
     assert_eq!(err.lines().count(), 3, "{err}");
     assert!(
-        err.contains("`spp` must be at least 1")
+        err.contains("`spp` must be between 1 and 65536, got 0")
             && err.contains("`ior`")
             && err.contains("`radius`")
     );
@@ -291,6 +291,13 @@ fn bad_output_and_missing_scene_are_refused() {
     assert!(stderr(&o).contains("missing.toml: cannot read the scene"));
     let o = prism(&["render", "scene.toml", "--spp", "0"], dir.path());
     assert_eq!(o.status.code(), Some(2));
+    let o = prism(&["render", "scene.toml", "--width", "100000"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("each side must be between 1 and 32768"),
+        "{}",
+        stderr(&o)
+    );
     // Nothing was written by any of these.
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
 }

@@ -20,6 +20,21 @@ use crate::math::sampling::stratified_point;
 use crate::scene::Scene;
 use crate::shading::whitted::{Whitted, WhittedSettings};
 
+/// Upper bounds on settings, so that a typo cannot exhaust memory, overflow
+/// the recursion stack or run for ever.
+pub mod limits {
+    /// Largest image width or height.
+    pub const MAX_IMAGE_SIDE: u32 = 32_768;
+    /// Most pixels in one image (a 16k × 16k film of f64 RGB is 6 GiB).
+    pub const MAX_PIXELS: u64 = 1 << 28;
+    /// Most samples per pixel.
+    pub const MAX_SPP: u32 = 65_536;
+    /// Deepest ray path (each level is a stack frame).
+    pub const MAX_DEPTH: u32 = 256;
+    /// Most shadow feelers per sphere light and shading point.
+    pub const MAX_LIGHT_SAMPLES: u32 = 65_536;
+}
+
 /// Side of the square tiles the image is cut into.
 const TILE: u32 = 16;
 
@@ -42,6 +57,38 @@ pub struct RenderSettings {
     pub threads: Option<usize>,
 }
 
+impl RenderSettings {
+    /// Checks the settings against [`limits`]; the message says what is wrong.
+    pub fn check(&self) -> Result<(), String> {
+        use limits::*;
+        let pixels = u64::from(self.width) * u64::from(self.height);
+        if self.width == 0
+            || self.height == 0
+            || self.width > MAX_IMAGE_SIDE
+            || self.height > MAX_IMAGE_SIDE
+        {
+            Err(format!(
+                "image size {}x{}: each side must be between 1 and {MAX_IMAGE_SIDE}",
+                self.width, self.height
+            ))
+        } else if pixels > MAX_PIXELS {
+            Err(format!(
+                "image size {}x{} has {pixels} pixels, more than {MAX_PIXELS}",
+                self.width, self.height
+            ))
+        } else if self.spp == 0 || self.spp > MAX_SPP {
+            Err(format!("spp {} must be between 1 and {MAX_SPP}", self.spp))
+        } else if self.max_depth == 0 || self.max_depth > MAX_DEPTH {
+            Err(format!(
+                "max_depth {} must be between 1 and {MAX_DEPTH}",
+                self.max_depth
+            ))
+        } else {
+            Ok(())
+        }
+    }
+}
+
 impl Default for RenderSettings {
     fn default() -> Self {
         RenderSettings {
@@ -59,6 +106,9 @@ impl Default for RenderSettings {
 /// Why a render could not run.
 #[derive(Debug, Error)]
 pub enum RenderError {
+    /// The settings are out of range (see [`RenderSettings::check`]).
+    #[error("{0}")]
+    Settings(String),
     /// The thread pool could not be built.
     #[error("cannot start {threads} render threads: {source}")]
     Threads {
@@ -110,6 +160,7 @@ pub fn render(
     settings: &RenderSettings,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<RenderOutput, RenderError> {
+    settings.check().map_err(RenderError::Settings)?;
     let start = Instant::now();
     let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(threads) = settings.threads {

@@ -15,7 +15,7 @@ use crate::camera::{Camera, FovAxis, Projection};
 use crate::geometry::{Ellipsoid, Plane, Polygon, Sphere};
 use crate::lights::{Light, LightShape};
 use crate::math::Transform;
-use crate::render::RenderSettings;
+use crate::render::{RenderSettings, limits};
 use crate::shading::{Fresnel, Highlight, Material, Texture};
 
 /// Builds the runtime scene; `None` if any problem was recorded.
@@ -149,10 +149,13 @@ impl Check<'_, '_> {
     }
 
     /// An optional count of at least 1.
-    fn count(&mut self, v: &Option<Spanned<u32>>, default: u32, what: &str) -> u32 {
+    fn count(&mut self, v: &Option<Spanned<u32>>, default: u32, what: &str, max: u32) -> u32 {
         match v {
-            Some(v) if *v.get_ref() == 0 => {
-                self.error(v.span(), format!("`{what}` must be at least 1"));
+            Some(v) if *v.get_ref() == 0 || *v.get_ref() > max => {
+                self.error(
+                    v.span(),
+                    format!("`{what}` must be between 1 and {max}, got {}", v.get_ref()),
+                );
                 default
             }
             Some(v) => *v.get_ref(),
@@ -163,10 +166,15 @@ impl Check<'_, '_> {
     fn settings(&mut self, r: &RenderDesc) -> RenderSettings {
         let defaults = RenderSettings::default();
         RenderSettings {
-            width: self.count(&r.width, defaults.width, "width"),
-            height: self.count(&r.height, defaults.height, "height"),
-            spp: self.count(&r.spp, defaults.spp, "spp"),
-            max_depth: self.count(&r.max_depth, defaults.max_depth, "max_depth"),
+            width: self.count(&r.width, defaults.width, "width", limits::MAX_IMAGE_SIDE),
+            height: self.count(&r.height, defaults.height, "height", limits::MAX_IMAGE_SIDE),
+            spp: self.count(&r.spp, defaults.spp, "spp", limits::MAX_SPP),
+            max_depth: self.count(
+                &r.max_depth,
+                defaults.max_depth,
+                "max_depth",
+                limits::MAX_DEPTH,
+            ),
             min_weight: self.number(
                 &r.min_weight,
                 defaults.min_weight,
@@ -315,7 +323,7 @@ impl Check<'_, '_> {
                     LightShape::Point { position }
                 } else {
                     let radius = self.number(&d.radius, 1.0, "radius", NON_NEGATIVE);
-                    let samples = self.count(&d.samples, 16, "samples");
+                    let samples = self.count(&d.samples, 16, "samples", limits::MAX_LIGHT_SAMPLES);
                     if radius == 0.0 {
                         LightShape::Point { position }
                     } else {

@@ -74,3 +74,133 @@ impl Scene {
         Scene::from_toml(DEFAULT_SCENE, "<built-in scene>").expect("the built-in scene is valid")
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::Shape;
+    use crate::lights::LightShape;
+
+    const HEAD: &str = "[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\n[materials.m]\n";
+
+    fn build(body: &str) -> Result<Scene, SceneError> {
+        Scene::from_toml(&format!("{HEAD}{body}"), "t.toml")
+    }
+
+    fn shape(body: &str) -> Shape {
+        let s = build(&format!("[[objects]]\nmaterial = \"m\"\n{body}"))
+            .unwrap_or_else(|e| panic!("{e}"));
+        s.aggregate.primitives()[0].shape.clone()
+    }
+
+    fn messages(body: &str) -> Vec<String> {
+        match build(body) {
+            Err(SceneError::Invalid { diagnostics, .. }) => {
+                diagnostics.into_iter().map(|d| d.message).collect()
+            }
+            other => panic!("expected errors, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn transform_steps_apply_first_to_last() {
+        let scaled_then_moved =
+            shape("type = \"sphere\"\ntransform = [{ scale = 2 }, { translate = [1, 0, 0] }]");
+        assert_eq!(
+            scaled_then_moved,
+            Shape::Sphere(crate::geometry::Sphere {
+                center: DVec3::X,
+                radius: 2.0
+            })
+        );
+        let moved_then_scaled =
+            shape("type = \"sphere\"\ntransform = [{ translate = [1, 0, 0] }, { scale = 2 }]");
+        let Shape::Sphere(s) = moved_then_scaled else {
+            panic!()
+        };
+        assert_eq!(s.center, DVec3::new(2.0, 0.0, 0.0));
+        // A matrix step is the same map as the named steps.
+        let by_matrix = shape(
+            "type = \"sphere\"\ntransform = [{ matrix = [[2, 0, 0, 1], [0, 2, 0, 0], [0, 0, 2, 0], [0, 0, 0, 1]] }]",
+        );
+        assert_eq!(by_matrix, scaled_then_moved);
+    }
+
+    #[test]
+    fn non_uniform_scale_makes_an_ellipsoid_and_rotation_keeps_a_sphere() {
+        assert!(matches!(
+            shape("type = \"sphere\"\ntransform = [{ scale = [1, 2, 1] }]"),
+            Shape::Ellipsoid(_)
+        ));
+        let Shape::Sphere(s) = shape(
+            "type = \"sphere\"\ncenter = [1, 0, 0]\nradius = 0.5\ntransform = [{ rotate = { axis = [0, 0, 1], degrees = 90 } }]",
+        ) else {
+            panic!("a rotated sphere is a sphere")
+        };
+        assert!((s.center - DVec3::Y).length() < 1e-12);
+        assert!((s.radius - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn planes_by_distance_or_point_and_under_transforms() {
+        let Shape::Plane(p) = shape("type = \"plane\"\nnormal = [0, 2, 0]\ndistance = -1") else {
+            panic!()
+        };
+        assert_eq!((p.normal, p.distance), (DVec3::Y, -1.0));
+        let Shape::Plane(q) = shape("type = \"plane\"\nnormal = [0, 1, 0]\npoint = [5, -1, 3]")
+        else {
+            panic!()
+        };
+        assert_eq!(p, q);
+        // Turned -90° about z, the floor y = -1 becomes the wall x = -1.
+        let Shape::Plane(r) = shape(
+            "type = \"plane\"\nnormal = [0, 1, 0]\ndistance = -1\ntransform = [{ rotate = { axis = [0, 0, 1], degrees = -90 } }]",
+        ) else {
+            panic!()
+        };
+        assert!((r.normal - DVec3::X).length() < 1e-12);
+        assert!((r.distance - -1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn sphere_light_of_radius_zero_is_a_point_light() {
+        let s = build("[lights.a]\ntype = \"sphere\"\nposition = [0, 1, 0]\nradius = 0").unwrap();
+        assert_eq!(s.lights[0].shape, LightShape::Point { position: DVec3::Y });
+    }
+
+    #[test]
+    fn keys_of_other_kinds_are_refused() {
+        let m = messages(
+            "[lights.a]\ntype = \"point\"\nposition = [0, 1, 0]\nradius = 2\n[[objects]]\ntype = \"plane\"\nmaterial = \"m\"\nnormal = [0, 1, 0]\nradius = 1",
+        );
+        assert_eq!(m.len(), 2, "{m:?}");
+        assert!(m[0].contains("`radius` does not apply to a point light"));
+        assert!(m[1].contains("`radius` does not apply to a plane"));
+    }
+
+    #[test]
+    fn degenerate_transforms_and_cameras_are_refused() {
+        let m = messages(
+            "[[objects]]\ntype = \"sphere\"\nmaterial = \"m\"\ntransform = [{ scale = [1, 0, 1] }]",
+        );
+        assert!(m[0].contains("invalid transform step"), "{m:?}");
+        let m = messages(
+            "[[objects]]\ntype = \"sphere\"\nmaterial = \"m\"\ntransform = [{ matrix = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 1, 1]] }]",
+        );
+        assert!(m[0].contains("last row is [0, 0, 0, 1]"), "{m:?}");
+        let bad_camera =
+            Scene::from_toml("[camera]\nposition = [0, 0, 0]\nlook_at = [0, 5, 0]", "t");
+        assert!(
+            bad_camera
+                .unwrap_err()
+                .to_string()
+                .contains("not parallel to `up`")
+        );
+    }
+
+    #[test]
+    fn unknown_sections_are_refused() {
+        let m = messages("[lightz.a]\ntype = \"point\"");
+        assert!(m[0].contains("unknown section `lightz`"), "{m:?}");
+    }
+}
