@@ -56,57 +56,67 @@ pub struct LightSample {
     pub falloff: f64,
 }
 
-impl Light {
-    /// How many feelers one shading point sends to this light.
-    pub fn sample_count(&self) -> usize {
-        match self.shape {
-            LightShape::Sphere { samples, .. } => samples.max(1) as usize,
-            _ => 1,
-        }
-    }
+/// The samples of one light as seen from one shading point: the set-up
+/// (direction, cone, falloff) is done once per point, not once per feeler.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LightSampler {
+    /// A single fixed direction (point and directional lights, or a point
+    /// inside a sphere light).
+    Fixed(LightSample),
+    /// Directions uniform over the cone a sphere light subtends.
+    Cone {
+        /// Frame around the axis towards the light's centre.
+        frame: Frame,
+        /// Cosine of the cone's half-angle: √(1 − r²/d²).
+        cos_max: f64,
+        /// Vector from the shading point to the centre.
+        to_center: DVec3,
+        /// The light's radius.
+        radius: f64,
+        /// Distance falloff factor.
+        falloff: f64,
+        /// Number of samples.
+        count: usize,
+    },
+}
 
-    /// Sample `index` of `count` towards the light from `point`.
+impl Light {
+    /// The sampler of this light from `point`.
     ///
     /// Sphere lights are sampled uniformly over the cone of directions the
     /// sphere subtends from `point`, one stratum of the unit square per
     /// sample, so the visible fraction of the light is estimated with
     /// stratified, equal-solid-angle samples: a smooth penumbra with few rays.
-    pub fn sample(
-        &self,
-        point: DVec3,
-        index: usize,
-        count: usize,
-        rng: &mut PixelRng,
-    ) -> LightSample {
+    pub fn sampler(&self, point: DVec3) -> LightSampler {
         match self.shape {
-            LightShape::Point { position } => self.towards_point(point, position),
-            LightShape::Directional { direction } => LightSample {
+            LightShape::Point { position } => {
+                LightSampler::Fixed(self.towards_point(point, position))
+            }
+            LightShape::Directional { direction } => LightSampler::Fixed(LightSample {
                 direction: -direction,
                 distance: f64::INFINITY,
                 falloff: 1.0,
-            },
-            LightShape::Sphere { center, radius, .. } => {
+            }),
+            LightShape::Sphere {
+                center,
+                radius,
+                samples,
+            } => {
                 let to_center = center - point;
                 let d2 = to_center.length_squared();
                 if d2 <= radius * radius {
                     // Inside the light: lit from everywhere, nothing can block.
                     let mut s = self.towards_point(point, center);
                     s.distance = 0.0;
-                    return s;
+                    return LightSampler::Fixed(s);
                 }
-                let d = d2.sqrt();
-                let axis = to_center / d;
-                let cos_max = (1.0 - radius * radius / d2).max(0.0).sqrt();
-                let u = stratified_point(index, count, rng);
-                let direction = uniform_cone(&Frame::from_z(axis), cos_max, u);
-                // The feeler ends where the direction meets the sphere; at the
-                // cone's rim rounding may miss it, then the tangent point.
-                let distance = sphere_roots(point, direction, center, radius)
-                    .map_or(to_center.dot(direction), |(t0, _)| t0);
-                LightSample {
-                    direction,
-                    distance,
+                LightSampler::Cone {
+                    frame: Frame::from_z(to_center / d2.sqrt()),
+                    cos_max: (1.0 - radius * radius / d2).max(0.0).sqrt(),
+                    to_center,
+                    radius,
                     falloff: self.falloff(d2),
+                    count: samples.max(1) as usize,
                 }
             }
         }
@@ -133,6 +143,43 @@ impl Light {
     }
 }
 
+impl LightSampler {
+    /// How many feelers the point sends to this light.
+    pub fn count(&self) -> usize {
+        match self {
+            LightSampler::Fixed(_) => 1,
+            LightSampler::Cone { count, .. } => *count,
+        }
+    }
+
+    /// Sample `index` of [`count`](Self::count).
+    #[inline]
+    pub fn sample(&self, index: usize, rng: &mut PixelRng) -> LightSample {
+        match *self {
+            LightSampler::Fixed(s) => s,
+            LightSampler::Cone {
+                frame,
+                cos_max,
+                to_center,
+                radius,
+                falloff,
+                count,
+            } => {
+                let direction = uniform_cone(&frame, cos_max, stratified_point(index, count, rng));
+                // The feeler ends where the direction meets the sphere; at the
+                // cone's rim rounding may miss it, then the tangent point.
+                let distance = sphere_roots(DVec3::ZERO, direction, to_center, radius)
+                    .map_or(to_center.dot(direction), |(t0, _)| t0);
+                LightSample {
+                    direction,
+                    distance,
+                    falloff,
+                }
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -147,11 +194,12 @@ mod tests {
             inverse_square: true,
         };
         let mut rng = PixelRng::new(0, 0, 0);
-        let s = l.sample(DVec3::new(0.0, 2.0, 0.0), 0, 1, &mut rng);
+        let sampler = l.sampler(DVec3::new(0.0, 2.0, 0.0));
+        assert_eq!(sampler.count(), 1);
+        let s = sampler.sample(0, &mut rng);
         assert_eq!(s.direction, DVec3::Y);
         assert_eq!(s.distance, 2.0);
         assert_eq!(s.falloff, 0.25);
-        assert_eq!(l.sample_count(), 1);
     }
 
     #[test]
@@ -169,8 +217,10 @@ mod tests {
         };
         let mut rng = PixelRng::new(9, 1, 2);
         let mut mean = DVec3::ZERO;
+        let sampler = l.sampler(DVec3::ZERO);
+        assert_eq!(sampler.count(), 64);
         for i in 0..64 {
-            let s = l.sample(DVec3::ZERO, i, 64, &mut rng);
+            let s = sampler.sample(i, &mut rng);
             assert!(((s.direction * s.distance - center).length() - radius).abs() < 1e-9);
             mean += s.direction;
         }

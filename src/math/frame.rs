@@ -3,7 +3,7 @@
 use glam::DVec3;
 
 /// An orthonormal basis (x, y, z) with `z` the given axis.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Frame {
     /// First tangent.
     pub x: DVec3,

@@ -216,10 +216,11 @@ impl<'a> Whitted<'a> {
         rng: &mut PixelRng,
         stats: &mut RayStats,
     ) -> DVec3 {
-        let count = light.sample_count();
+        let sampler = light.sampler(hit.point);
+        let count = sampler.count();
         let mut sum = DVec3::ZERO;
         for i in 0..count {
-            let sample = light.sample(hit.point, i, count, rng);
+            let sample = sampler.sample(i, rng);
             let l = sample.direction;
             let n_dot_l = n.dot(l);
             if n_dot_l <= 0.0 {
@@ -230,11 +231,15 @@ impl<'a> Whitted<'a> {
             if visibility == 0.0 {
                 continue;
             }
-            let highlight = match material.highlight {
-                Highlight::Phong => reflect(-l, n).dot(view),
-                Highlight::Blinn => n.dot((l + view).normalize()),
+            let specular = if material.ks > 0.0 {
+                let highlight = match material.highlight {
+                    Highlight::Phong => reflect(-l, n).dot(view),
+                    Highlight::Blinn => n.dot((l + view).normalize()),
+                };
+                material.ks * highlight.max(0.0).powf(material.shininess)
+            } else {
+                0.0
             };
-            let specular = material.ks * highlight.max(0.0).powf(material.shininess);
             sum +=
                 visibility * sample.falloff * (material.kd * od * n_dot_l + DVec3::splat(specular));
         }
