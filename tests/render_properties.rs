@@ -403,3 +403,227 @@ fn penumbra_matches_a_brute_force_reference() {
     // 256 stratified samples: the error is a few percent at most.
     assert!(worst < 0.03, "worst difference {worst}");
 }
+
+#[test]
+fn lit_pixel_equals_the_whitted_formula_by_hand() {
+    // Orthographic view straight down on a floor; a point light straight
+    // above at height 4 with inverse-square falloff. At the centre pixel
+    // N = L = V = +y, so N·L = 1 and R·V = 1:
+    // I = ka·Od·Ia + Il/d²·(kd·Od + ks).
+    let s = scene(
+        r#"
+        [render]
+        width = 3
+        height = 3
+        spp = 1
+        ambient = [0.2, 0.4, 0.6]
+        [camera]
+        type = "orthographic"
+        position = [0, 5, 0]
+        look_at = [0, 0, 0]
+        up = [0, 0, -1]
+        view_height = 0.3
+        [materials.m]
+        color = [1, 0.5, 0.25]
+        ka = 0.3
+        kd = 0.6
+        ks = 0.25
+        shininess = 7
+        [lights.l]
+        type = "point"
+        position = [0, 4, 0]
+        color = [1, 0.8, 0.6]
+        intensity = 8
+        falloff = "inverse_square"
+        [[objects]]
+        type = "plane"
+        material = "m"
+        normal = [0, 1, 0]
+        "#,
+    );
+    let od = DVec3::new(1.0, 0.5, 0.25);
+    let il = DVec3::new(1.0, 0.8, 0.6) * 8.0 / 16.0;
+    let expected = 0.3 * od * DVec3::new(0.2, 0.4, 0.6) + il * (0.6 * od + DVec3::splat(0.25));
+    let got = film(&s, 1).get(1, 1);
+    assert!(
+        (got - expected).abs().max_element() < 1e-12,
+        "{got} vs {expected}"
+    );
+}
+
+#[test]
+fn glass_ball_seen_along_its_axis_passes_kt_squared() {
+    // Straight through the centre both interfaces are at normal incidence:
+    // no bending, the ray leaves along the axis and sees the background,
+    // weighted by kt on entering and kt on leaving; kr adds the mirror
+    // image of the (black) camera side.
+    let s = scene(
+        r#"
+        [render]
+        width = 1
+        height = 1
+        spp = 1
+        background = [0.5, 1, 0.25]
+        ambient = [0, 0, 0]
+        min_weight = 0
+        [camera]
+        position = [0, 0, 5]
+        look_at = [0, 0, 0]
+        fov = 1
+        [materials.glass]
+        ka = 0
+        kd = 0
+        kr = 0.1
+        kt = 0.8
+        ior = 1.5
+        [[objects]]
+        type = "sphere"
+        material = "glass"
+        "#,
+    );
+    let got = film(&s, 1).get(0, 0);
+    // The whole ray tree by hand (min_weight = 0, so only max_depth = 8
+    // cuts it): the camera ray (depth 1) reflects kr·b off the outer
+    // surface and sends kt inside. A ray inside at depth d < 8 meets the
+    // surface head-on again: kt leaves to the background, kr goes back in
+    // at depth d + 1; at depth 8 only the (zero) local terms count.
+    let b = DVec3::new(0.5, 1.0, 0.25);
+    let mut inner = DVec3::ZERO;
+    for _depth in (2..8).rev() {
+        inner = 0.8 * b + 0.1 * inner;
+    }
+    let expected = 0.1 * b + 0.8 * inner;
+    assert!(
+        (got - expected).abs().max_element() < 1e-9,
+        "{got} vs {expected}"
+    );
+    // Without kr it is exactly kt²·background.
+    let mut s = s;
+    s.materials[0].kr = 0.0;
+    let got = film(&s, 1).get(0, 0);
+    assert!((got - 0.64 * b).abs().max_element() < 1e-12, "{got}");
+}
+
+#[test]
+fn total_internal_reflection_disk_has_radius_r_over_n() {
+    // An orthographic camera inside a unit glass ball (n = 1.5) looking
+    // along −z: a ray at distance r from the axis meets the surface at
+    // sin θ = r, and leaves only if r < 1/n; beyond, it is totally
+    // reflected and stays trapped (same angle at every bounce), so it
+    // ends black. The bright disk must have area π/n².
+    let s = scene(
+        r#"
+        [render]
+        width = 301
+        height = 301
+        spp = 1
+        background = [1, 1, 1]
+        ambient = [0, 0, 0]
+        [camera]
+        type = "orthographic"
+        position = [0, 0, 0]
+        look_at = [0, 0, -1]
+        view_height = 2
+        [materials.glass]
+        ka = 0
+        kd = 0
+        kt = 1
+        ior = 1.5
+        [[objects]]
+        type = "sphere"
+        material = "glass"
+        "#,
+    );
+    let f = film(&s, 2);
+    let pixel = 2.0 / 301.0;
+    let mut bright = 0;
+    for y in 0..301 {
+        for x in 0..301 {
+            let (u, v) = (
+                (x as f64 + 0.5) * pixel - 1.0,
+                (y as f64 + 0.5) * pixel - 1.0,
+            );
+            if u * u + v * v < 1.0 && f.get(x, y).x > 0.5 {
+                bright += 1;
+            }
+        }
+    }
+    let area = bright as f64 * pixel * pixel;
+    let expected = std::f64::consts::PI / 2.25;
+    assert!(
+        (area - expected).abs() / expected < 0.01,
+        "area {area}, expected {expected}"
+    );
+}
+
+#[test]
+fn adaptive_depth_skips_only_rays_of_negligible_weight() {
+    // A ball between two parallel mirrors: a long ray tree.
+    let toml = |min_weight: f64| {
+        format!(
+            r#"
+            [render]
+            width = 16
+            height = 12
+            spp = 1
+            max_depth = 30
+            min_weight = {min_weight}
+            background = [1, 1, 1]
+            [camera]
+            position = [0, 0, 0]
+            look_at = [0, 0, -1]
+            [materials.mirror]
+            kd = 0.1
+            kr = 0.8
+            [lights.l]
+            type = "point"
+            position = [0, 3, 0]
+            [[objects]]
+            type = "plane"
+            material = "mirror"
+            normal = [0, 0, 1]
+            distance = -3
+            [[objects]]
+            type = "plane"
+            material = "mirror"
+            normal = [0, 0, 1]
+            distance = 3
+            [[objects]]
+            type = "sphere"
+            material = "mirror"
+            center = [0, -1, -1.5]
+            radius = 0.5
+            "#
+        )
+    };
+    let run = |min_weight: f64| {
+        let s = scene(&toml(min_weight));
+        render(
+            &s,
+            &RenderSettings {
+                threads: Some(2),
+                ..s.settings
+            },
+            &|_| {},
+        )
+        .unwrap()
+    };
+    let (full, adaptive) = (run(0.0), run(0.01));
+    // Between the mirrors the weight is 0.8ᵏ after k bounces: below 0.01
+    // from k = 21 on, so about 20 of the 29 reflections per pixel remain.
+    assert!(
+        adaptive.stats.reflection * 4 < full.stats.reflection * 3,
+        "{:?} vs {:?}",
+        adaptive.stats,
+        full.stats
+    );
+    // A dropped ray has weight < 0.01, and no ray here can carry more than
+    // (local ≤ 0.01 ambient + 0.1 diffuse) / (1 − 0.8) = 0.55.
+    for (a, b) in adaptive.film.pixels().iter().zip(full.film.pixels()) {
+        assert!((*a - *b).abs().max_element() < 0.01 * 0.55, "{a} vs {b}");
+        assert!(
+            a.max_element() <= b.max_element() + 1e-12,
+            "dropping rays only removes light"
+        );
+    }
+}

@@ -1,6 +1,9 @@
 //! The coefficients of the Whitted model for one surface.
 
+use glam::DVec3;
+
 use super::Texture;
+use super::optics::reflect;
 
 /// How kr and kt are found at a hit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -47,4 +50,80 @@ pub struct Material {
     pub fresnel: Fresnel,
     /// Highlight model.
     pub highlight: Highlight,
+}
+
+impl Material {
+    /// The local (Phong) term of the Whitted model for one light direction,
+    /// per unit of light: kd·Od·max(0, N·L) + ks·max(0, R·V)ⁿ with
+    /// R = reflect(−L, N) (or ks·max(0, N·H)ⁿ, H = (L + V)/|L + V|, for
+    /// Blinn). `n`, `l`, `view` are unit; the highlight is white.
+    #[inline]
+    pub fn phong(&self, od: DVec3, n: DVec3, l: DVec3, view: DVec3) -> DVec3 {
+        let n_dot_l = n.dot(l).max(0.0);
+        let specular = if self.ks > 0.0 && n_dot_l > 0.0 {
+            let highlight = match self.highlight {
+                Highlight::Phong => reflect(-l, n).dot(view),
+                Highlight::Blinn => n.dot((l + view).normalize()),
+            };
+            self.ks * highlight.max(0.0).powf(self.shininess)
+        } else {
+            0.0
+        };
+        self.kd * od * n_dot_l + DVec3::splat(specular)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn material(highlight: Highlight) -> Material {
+        Material {
+            texture: Texture::Solid(DVec3::ONE),
+            ka: 0.0,
+            kd: 0.6,
+            ks: 0.5,
+            shininess: 10.0,
+            kr: 0.0,
+            kt: 0.0,
+            ior: 1.0,
+            fresnel: Fresnel::Off,
+            highlight,
+        }
+    }
+
+    #[test]
+    fn phong_hand_worked() {
+        let m = material(Highlight::Phong);
+        let od = DVec3::new(1.0, 0.5, 0.25);
+        let n = DVec3::Y;
+        // Light 60° from the normal: N·L = 1/2. Viewer along the mirror
+        // direction: R·V = 1, so the highlight is ks.
+        let l = DVec3::new(3f64.sqrt() / 2.0, 0.5, 0.0);
+        let v = DVec3::new(-(3f64.sqrt()) / 2.0, 0.5, 0.0);
+        let c = m.phong(od, n, l, v);
+        let expected = 0.6 * od * 0.5 + DVec3::splat(0.5);
+        assert!((c - expected).length() < 1e-12, "{c}");
+        // Viewer straight above: R·V = cos 60° = 1/2, highlight ks·2⁻¹⁰.
+        let c = m.phong(od, n, l, n);
+        let expected = 0.6 * od * 0.5 + DVec3::splat(0.5 * 0.5f64.powi(10));
+        assert!((c - expected).length() < 1e-12, "{c}");
+        // Light below the surface: nothing.
+        assert_eq!(m.phong(od, n, -l, v), DVec3::ZERO);
+    }
+
+    #[test]
+    fn blinn_uses_the_half_vector() {
+        let m = material(Highlight::Blinn);
+        let n = DVec3::Y;
+        // L and V symmetric about N: H = N, highlight ks.
+        let l = DVec3::new(0.6, 0.8, 0.0);
+        let v = DVec3::new(-0.6, 0.8, 0.0);
+        let c = m.phong(DVec3::ZERO, n, l, v);
+        assert!((c - DVec3::splat(0.5)).length() < 1e-12);
+        // Viewer straight above: H is halfway between L and N.
+        let h = (l + n).normalize();
+        let c = m.phong(DVec3::ZERO, n, l, n);
+        assert!((c.x - 0.5 * h.y.powf(10.0)).abs() < 1e-12);
+    }
 }

@@ -8,7 +8,7 @@
 use glam::DVec3;
 
 use super::optics::{fresnel_dielectric, reflect, refract, schlick};
-use super::{Fresnel, Highlight, Material};
+use super::{Fresnel, Material};
 use crate::geometry::Hit;
 use crate::lights::{Light, LightSample};
 use crate::math::Ray;
@@ -231,17 +231,7 @@ impl<'a> Whitted<'a> {
             if visibility == 0.0 {
                 continue;
             }
-            let specular = if material.ks > 0.0 {
-                let highlight = match material.highlight {
-                    Highlight::Phong => reflect(-l, n).dot(view),
-                    Highlight::Blinn => n.dot((l + view).normalize()),
-                };
-                material.ks * highlight.max(0.0).powf(material.shininess)
-            } else {
-                0.0
-            };
-            sum +=
-                visibility * sample.falloff * (material.kd * od * n_dot_l + DVec3::splat(specular));
+            sum += visibility * sample.falloff * material.phong(od, n, l, view);
         }
         light.radiance * sum / count as f64
     }
