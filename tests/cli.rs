@@ -255,6 +255,23 @@ fn syntax_error_is_refused() {
 }
 
 #[test]
+fn binary_file_is_refused_with_its_position() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("scene.toml"),
+        b"[render]\nwidth = 8\x89PNG\n",
+    )
+    .unwrap();
+    let o = prism(&["check", "scene.toml"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).starts_with("scene.toml:2:10: error: the file is not valid UTF-8"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
 fn every_problem_is_reported_at_once() {
     let scene = GOOD
         .replace("radius = 1", "radius = -1")

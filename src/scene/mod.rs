@@ -62,11 +62,27 @@ impl Scene {
 
     /// Reads and builds the scene file at `path`.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let source = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
+        let bytes = std::fs::read(path).map_err(|source| SceneError::Read {
             path: path.to_path_buf(),
             source,
         })?;
-        Scene::from_toml(&source, &path.display().to_string())
+        let origin = path.display().to_string();
+        match String::from_utf8(bytes) {
+            Ok(source) => Scene::from_toml(&source, &origin),
+            Err(e) => {
+                let valid = std::str::from_utf8(&e.as_bytes()[..e.utf8_error().valid_up_to()])
+                    .unwrap_or_default();
+                let (line, column) = error::line_column(valid, valid.len());
+                Err(SceneError::Invalid {
+                    origin,
+                    diagnostics: vec![Diagnostic {
+                        line,
+                        column,
+                        message: "the file is not valid UTF-8 text; expected a TOML scene".into(),
+                    }],
+                })
+            }
+        }
     }
 
     /// The built-in demo scene.
