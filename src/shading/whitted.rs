@@ -96,6 +96,50 @@ enum RayKind {
     Refraction,
 }
 
+/// Where a ray stands in the ray tree.
+#[derive(Clone, Copy, Debug)]
+struct PathState {
+    kind: RayKind,
+    /// 1 for the camera ray.
+    depth: u32,
+    /// Product of the kr/kt factors from the camera to this ray.
+    weight: f64,
+    /// The media the ray travels through.
+    media: Media,
+}
+
+impl PathState {
+    fn child(&self, kind: RayKind, k: f64, media: Media) -> PathState {
+        PathState {
+            kind,
+            depth: self.depth + 1,
+            weight: self.weight * k,
+            media,
+        }
+    }
+}
+
+/// What the local model needs at a hit.
+struct ShadingPoint<'m> {
+    hit: Hit,
+    /// Unit normal facing the incoming ray.
+    n: DVec3,
+    /// Unit direction towards the viewer (−D).
+    view: DVec3,
+    material: &'m Material,
+    /// Surface colour Od at the hit.
+    od: DVec3,
+}
+
+/// How a hit divides the rest of the path: the weights of the reflected and
+/// transmitted rays, the transmitted direction, the media beyond.
+struct Split {
+    kr: f64,
+    kt: f64,
+    refracted: Option<DVec3>,
+    media_beyond: Media,
+}
+
 impl<'a> Whitted<'a> {
     /// A tracer for `scene`.
     pub fn new(scene: &'a Scene, settings: WhittedSettings) -> Self {
@@ -104,21 +148,17 @@ impl<'a> Whitted<'a> {
 
     /// The colour seen along a camera ray.
     pub fn radiance(&self, ray: &Ray, rng: &mut PixelRng, stats: &mut RayStats) -> DVec3 {
-        self.trace(ray, RayKind::Camera, 1, 1.0, Media::default(), rng, stats)
+        let path = PathState {
+            kind: RayKind::Camera,
+            depth: 1,
+            weight: 1.0,
+            media: Media::default(),
+        };
+        self.trace(ray, path, rng, stats)
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn trace(
-        &self,
-        ray: &Ray,
-        kind: RayKind,
-        depth: u32,
-        weight: f64,
-        media: Media,
-        rng: &mut PixelRng,
-        stats: &mut RayStats,
-    ) -> DVec3 {
-        match kind {
+    fn trace(&self, ray: &Ray, path: PathState, rng: &mut PixelRng, stats: &mut RayStats) -> DVec3 {
+        match path.kind {
             RayKind::Camera => stats.camera += 1,
             RayKind::Reflection => stats.reflection += 1,
             RayKind::Refraction => stats.refraction += 1,
@@ -126,112 +166,121 @@ impl<'a> Whitted<'a> {
         let Some(hit) = self.scene.aggregate.closest_hit(ray, f64::INFINITY) else {
             return self.scene.background;
         };
-        let primitive = &self.scene.aggregate.primitives()[hit.primitive as usize];
-        let material = &self.scene.materials[primitive.material as usize];
+        let material_index = self.scene.aggregate.primitives()[hit.primitive as usize].material;
+        let material = &self.scene.materials[material_index as usize];
         // Shading normal faces the incoming ray; "entering" by the sign of I·N.
         let entering = ray.direction.dot(hit.normal) < 0.0;
-        let n = if entering { hit.normal } else { -hit.normal };
-        let view = -ray.direction;
-        let od = material.texture.color(hit.point, hit.normal);
+        let point = ShadingPoint {
+            hit,
+            n: if entering { hit.normal } else { -hit.normal },
+            view: -ray.direction,
+            material,
+            od: material.texture.color(hit.point, hit.normal),
+        };
 
-        let mut color = material.ka * od * self.scene.ambient;
+        let mut color = material.ka * point.od * self.scene.ambient;
         for light in &self.scene.lights {
-            color += self.direct(light, &hit, n, view, material, od, rng, stats);
+            color += self.direct(light, &point, rng, stats);
         }
-
-        if depth >= self.settings.max_depth {
+        if path.depth >= self.settings.max_depth {
             return color;
         }
-        let (mut kr, mut kt) = (material.kr, material.kt);
-        // Indices across the boundary: η = ηi/ηt.
-        let (eta_i, eta_t, media_after) = if entering {
-            (
-                media.ior(),
-                material.ior,
-                media.entering(primitive.material, material.ior),
-            )
-        } else {
-            let outside = media.leaving(primitive.material);
-            (material.ior, outside.ior(), outside)
-        };
-        let cos_i = view.dot(n);
-        if kt > 0.0 && material.fresnel != Fresnel::Off {
-            let f = match material.fresnel {
-                Fresnel::Schlick => schlick(cos_i, eta_i, eta_t),
-                _ => fresnel_dielectric(cos_i, eta_i, eta_t),
-            };
-            let total = kr + kt;
-            (kr, kt) = (f * total, (1.0 - f) * total);
+
+        let split = self.split(&point, material_index, entering, path.media);
+        if split.kr > 0.0 && path.weight * split.kr >= self.settings.min_weight {
+            let r = Ray::spawn(hit.point, hit.normal, reflect(ray.direction, point.n));
+            let child = path.child(RayKind::Reflection, split.kr, path.media);
+            color += split.kr * self.trace(&r, child, rng, stats);
         }
-        let transmitted = if kt > 0.0 {
-            refract(ray.direction, n, eta_i / eta_t)
-        } else {
-            None
-        };
-        if kt > 0.0 && transmitted.is_none() {
-            // Total internal reflection: all the energy is reflected.
-            kr += kt;
-            kt = 0.0;
-        }
-        if kr > 0.0 && weight * kr >= self.settings.min_weight {
-            let r = Ray::spawn(hit.point, hit.normal, reflect(ray.direction, n));
-            color += kr
-                * self.trace(
-                    &r,
-                    RayKind::Reflection,
-                    depth + 1,
-                    weight * kr,
-                    media,
-                    rng,
-                    stats,
-                );
-        }
-        if let Some(t) = transmitted.filter(|_| weight * kt >= self.settings.min_weight) {
+        if let Some(t) = split
+            .refracted
+            .filter(|_| path.weight * split.kt >= self.settings.min_weight)
+        {
             let r = Ray::spawn(hit.point, hit.normal, t.normalize());
-            color += kt
-                * self.trace(
-                    &r,
-                    RayKind::Refraction,
-                    depth + 1,
-                    weight * kt,
-                    media_after,
-                    rng,
-                    stats,
-                );
+            let child = path.child(RayKind::Refraction, split.kt, split.media_beyond);
+            color += split.kt * self.trace(&r, child, rng, stats);
         }
         color
     }
 
+    /// kr, kt and the refracted direction at a hit: the material's weights,
+    /// or their sum split by Fresnel if asked; under total internal
+    /// reflection the transmitted weight goes to reflection.
+    fn split(
+        &self,
+        point: &ShadingPoint,
+        material_index: u32,
+        entering: bool,
+        media: Media,
+    ) -> Split {
+        let material = point.material;
+        let (mut kr, mut kt) = (material.kr, material.kt);
+        if kt == 0.0 {
+            return Split {
+                kr,
+                kt,
+                refracted: None,
+                media_beyond: media,
+            };
+        }
+        // Indices on both sides: η = ηi/ηt.
+        let (eta_i, eta_t, media_beyond) = if entering {
+            (
+                media.ior(),
+                material.ior,
+                media.entering(material_index, material.ior),
+            )
+        } else {
+            let outside = media.leaving(material_index);
+            (material.ior, outside.ior(), outside)
+        };
+        let cos_i = point.view.dot(point.n);
+        if material.fresnel != Fresnel::Off {
+            let f = match material.fresnel {
+                Fresnel::Schlick => schlick(cos_i, eta_i, eta_t),
+                _ => fresnel_dielectric(cos_i, eta_i, eta_t),
+            };
+            (kr, kt) = (f * (kr + kt), (1.0 - f) * (kr + kt));
+        }
+        let refracted = refract(-point.view, point.n, eta_i / eta_t);
+        if refracted.is_none() {
+            // Total internal reflection: all the energy is reflected.
+            (kr, kt) = (kr + kt, 0.0);
+        }
+        Split {
+            kr,
+            kt,
+            refracted,
+            media_beyond,
+        }
+    }
+
     /// One light's local (Phong) contribution, averaged over its samples,
     /// each weighted by its shadow feeler's visibility.
-    #[allow(clippy::too_many_arguments)]
     fn direct(
         &self,
         light: &Light,
-        hit: &Hit,
-        n: DVec3,
-        view: DVec3,
-        material: &Material,
-        od: DVec3,
+        point: &ShadingPoint,
         rng: &mut PixelRng,
         stats: &mut RayStats,
     ) -> DVec3 {
-        let sampler = light.sampler(hit.point);
+        let sampler = light.sampler(point.hit.point);
         let count = sampler.count();
         let mut sum = DVec3::ZERO;
         for i in 0..count {
             let sample = sampler.sample(i, rng);
-            let l = sample.direction;
-            let n_dot_l = n.dot(l);
-            if n_dot_l <= 0.0 {
+            if point.n.dot(sample.direction) <= 0.0 {
                 // The light is behind the surface: no feeler needed.
                 continue;
             }
-            let visibility = self.visibility(hit, &sample, stats);
-            if visibility == 0.0 {
-                continue;
+            let visibility = self.visibility(&point.hit, &sample, stats);
+            if visibility > 0.0 {
+                sum += visibility
+                    * sample.falloff
+                    * point
+                        .material
+                        .phong(point.od, point.n, sample.direction, point.view);
             }
-            sum += visibility * sample.falloff * material.phong(od, n, l, view);
         }
         light.radiance * sum / count as f64
     }
