@@ -627,3 +627,50 @@ fn adaptive_depth_skips_only_rays_of_negligible_weight() {
         );
     }
 }
+
+#[test]
+fn lossless_glass_vanishes_in_a_white_furnace() {
+    // A ball that only reflects and transmits (kr + kt = 1, no local
+    // terms) under a uniform white sky: every path ends in the sky, so
+    // every pixel is 1 — whatever the split, classic or Fresnel. A ray
+    // entering a sphere can never be totally reflected inside (its inner
+    // angle equals its refraction angle), so no energy is trapped; only the
+    // weight still bouncing inside at max_depth is lost, which near the
+    // silhouette, where Fresnel reflectance nears 1, is up to ~1e-5.
+    for fresnel in ["off", "exact", "schlick"] {
+        let s = scene(&format!(
+            r#"
+            [render]
+            width = 24
+            height = 24
+            spp = 1
+            max_depth = 64
+            min_weight = 0
+            background = [1, 1, 1]
+            ambient = [0, 0, 0]
+            [camera]
+            position = [0, 0, 4]
+            look_at = [0, 0, 0]
+            fov = 35
+            [materials.glass]
+            ka = 0
+            kd = 0
+            kr = 0.3
+            kt = 0.7
+            ior = 1.5
+            fresnel = "{fresnel}"
+            [[objects]]
+            type = "sphere"
+            material = "glass"
+            "#
+        ));
+        let lost = if fresnel == "off" { 1e-12 } else { 1e-4 };
+        for p in film(&s, 2).pixels() {
+            assert!(
+                p.max_element() <= 1.0 + 1e-12,
+                "{fresnel}: energy created: {p}"
+            );
+            assert!(p.min_element() >= 1.0 - lost, "{fresnel}: energy lost: {p}");
+        }
+    }
+}

@@ -207,18 +207,24 @@ impl Check<'_, '_> {
                 );
                 Projection::Perspective {
                     fov: fov.to_radians(),
-                    axis: match d.fov_axis {
+                    axis: match d.fov_axis.as_ref().map(Spanned::get_ref) {
                         Some(FovAxisDesc::Horizontal) => FovAxis::Horizontal,
                         _ => FovAxis::Vertical,
                     },
                 }
             }
             CameraKind::Orthographic => {
-                if let Some(v) = &d.fov {
-                    self.error(
-                        v.span(),
-                        "`fov` applies to perspective cameras; use `view_height`".into(),
-                    );
+                let misplaced = [
+                    ("fov", d.fov.as_ref().map(Spanned::span)),
+                    ("fov_axis", d.fov_axis.as_ref().map(Spanned::span)),
+                ];
+                for (key, span) in misplaced {
+                    if let Some(span) = span {
+                        self.error(
+                            span,
+                            format!("`{key}` applies to perspective cameras; use `view_height`"),
+                        );
+                    }
                 }
                 let view_height = self.number(&d.view_height, 2.0, "view_height", POSITIVE);
                 Projection::Orthographic { view_height }

@@ -92,7 +92,7 @@ pub struct CameraDesc {
     /// Field of view in degrees (perspective).
     pub fov: Option<Number>,
     /// Axis of `fov`.
-    pub fov_axis: Option<FovAxisDesc>,
+    pub fov_axis: Option<Spanned<FovAxisDesc>>,
     /// Height of the view in world units (orthographic).
     pub view_height: Option<Number>,
 }
