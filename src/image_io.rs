@@ -124,11 +124,13 @@ pub fn write_film(film: &Film, path: &Path) -> Result<(), ImageWriteError> {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
-    let temp = tempfile::Builder::new()
-        .prefix(".prism-")
-        .suffix(".part")
-        .tempfile_in(dir)
-        .map_err(io_error)?;
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".prism-").suffix(".part");
+    // Temporary files are private (0600) by default; the image should get
+    // the permissions any new file gets (0666 less the umask).
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+    let temp = builder.tempfile_in(dir).map_err(io_error)?;
     let image_format = match format {
         OutputFormat::Png => ImageFormat::Png,
         OutputFormat::Ppm => ImageFormat::Pnm,
@@ -191,6 +193,15 @@ mod tests {
         }
         // Nothing but the four outputs: the temporaries are gone.
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 4);
+        // The same permissions as any new file (not the private 0600 of a
+        // temporary file).
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let mode = |name: &str| std::fs::metadata(dir.path().join(name)).unwrap().permissions().mode();
+            std::fs::write(dir.path().join("plain"), b"").unwrap();
+            assert_eq!(mode("out.png"), mode("plain"));
+        }
     }
 
     #[test]
