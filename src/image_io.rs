@@ -198,7 +198,12 @@ mod tests {
         #[cfg(unix)]
         {
             use std::os::unix::fs::PermissionsExt;
-            let mode = |name: &str| std::fs::metadata(dir.path().join(name)).unwrap().permissions().mode();
+            let mode = |name: &str| {
+                std::fs::metadata(dir.path().join(name))
+                    .unwrap()
+                    .permissions()
+                    .mode()
+            };
             std::fs::write(dir.path().join("plain"), b"").unwrap();
             assert_eq!(mode("out.png"), mode("plain"));
         }
