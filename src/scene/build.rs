@@ -19,7 +19,7 @@ use crate::render::{RenderSettings, limits};
 use crate::shading::{Fresnel, Highlight, Material, Texture};
 
 /// Builds the runtime scene; `None` if any problem was recorded.
-pub fn build(file: SceneFile, file_span: Range<usize>, diags: &mut Diagnostics) -> Option<Scene> {
+pub fn build(file: SceneFile, diags: &mut Diagnostics) -> Option<Scene> {
     let mut c = Check { diags };
     let settings = c.settings(&file.render);
     let background = file
@@ -38,7 +38,7 @@ pub fn build(file: SceneFile, file_span: Range<usize>, diags: &mut Diagnostics) 
         None if file.unparsed.contains("camera") => None,
         None => {
             c.diags.error(
-                file_span.start..file_span.start,
+                0..0,
                 "missing [camera] section (position and look_at are required)",
             );
             None
@@ -303,7 +303,7 @@ impl Check<'_, '_> {
             if field.is_none() {
                 this.error(
                     desc.span(),
-                    format!("{label}: a {kind:?} light needs `{key}`").to_lowercase(),
+                    format!("{label}: a {} light needs `{key}`", kind.name()),
                 );
             }
         };
@@ -311,10 +311,7 @@ impl Check<'_, '_> {
             if let Some(span) = span {
                 this.error(
                     span,
-                    format!(
-                        "{label}: `{key}` does not apply to a {} light",
-                        format!("{kind:?}").to_lowercase()
-                    ),
+                    format!("{label}: `{key}` does not apply to a {} light", kind.name()),
                 );
             }
         };
@@ -381,7 +378,7 @@ impl Check<'_, '_> {
             Some(n) => format!("object `{n}` (objects[{index}])"),
             None => format!("objects[{index}]"),
         };
-        let kind_name = format!("{kind:?}").to_lowercase();
+        let kind_name = kind.name();
         let material = match materials.get(d.material.get_ref().as_str()) {
             Some(&m) => Some(m),
             // Its own error is already reported.

@@ -169,6 +169,17 @@ pub enum LightKind {
     Sphere,
 }
 
+impl LightKind {
+    /// The name as written in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            LightKind::Point => "point",
+            LightKind::Directional => "directional",
+            LightKind::Sphere => "sphere",
+        }
+    }
+}
+
 /// `falloff = ...`.
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "snake_case")]
@@ -212,6 +223,17 @@ pub enum ObjectKind {
     Plane,
     /// Planar polygon.
     Polygon,
+}
+
+impl ObjectKind {
+    /// The name as written in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            ObjectKind::Sphere => "sphere",
+            ObjectKind::Plane => "plane",
+            ObjectKind::Polygon => "polygon",
+        }
+    }
 }
 
 /// `[[objects]]`.

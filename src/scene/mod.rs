@@ -49,8 +49,7 @@ impl Scene {
     /// Every problem found is reported, not just the first.
     pub fn from_toml(source: &str, origin: &str) -> Result<Scene, SceneError> {
         let mut diags = error::Diagnostics::new(source);
-        let scene = load::parse(source, &mut diags)
-            .and_then(|file| build::build(file, 0..source.len(), &mut diags));
+        let scene = load::parse(source, &mut diags).and_then(|file| build::build(file, &mut diags));
         match scene {
             Some(scene) if diags.is_empty() => Ok(scene),
             _ => Err(SceneError::Invalid {
