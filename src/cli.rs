@@ -2,17 +2,20 @@
 //! No rendering logic lives here; it calls the `prism` library.
 //!
 //! Exit codes: 0 success, 1 a failure while rendering or writing, 2 bad
-//! input (arguments, scene file, output path); on bad input nothing is
-//! written.
+//! input (arguments, scene file, output path), 130 interrupted (Ctrl-C);
+//! on bad input or interruption nothing is written.
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use prism::image_io::{OutputFormat, write_film};
-use prism::{RenderSettings, Scene, SceneError, render};
+use prism::render::RenderError;
+use prism::{RenderObserver, RenderSettings, Scene, SceneError, render};
 
 /// Prism, an exact Whitted-style ray tracer.
 #[derive(Parser)]
@@ -64,6 +67,24 @@ struct RenderArgs {
 }
 
 const BAD_INPUT: u8 = 2;
+/// 128 + SIGINT, what shells report for a program stopped by Ctrl-C.
+const INTERRUPTED: u8 = 130;
+
+/// Progress on the bar; cancellation from Ctrl-C.
+struct CliObserver {
+    bar: ProgressBar,
+    interrupted: Arc<AtomicBool>,
+}
+
+impl RenderObserver for CliObserver {
+    fn tile_done(&self, pixels_done: u64) {
+        self.bar.set_position(pixels_done);
+    }
+
+    fn cancelled(&self) -> bool {
+        self.interrupted.load(Ordering::Relaxed)
+    }
+}
 
 /// Runs the command line and returns the process exit code.
 pub fn run() -> ExitCode {
@@ -158,14 +179,32 @@ fn render_command(args: &RenderArgs) -> ExitCode {
         );
         ProgressBar::hidden()
     };
-    let output = match render(&scene, &settings, &|done| bar.set_position(done)) {
+    let observer = CliObserver {
+        bar,
+        interrupted: Arc::new(AtomicBool::new(false)),
+    };
+    let flag = Arc::clone(&observer.interrupted);
+    // First Ctrl-C: stop at the next row and write nothing; a second one
+    // exits at once.
+    let _ = ctrlc::set_handler(move || {
+        if flag.swap(true, Ordering::SeqCst) {
+            std::process::exit(INTERRUPTED.into());
+        }
+    });
+    let output = match render(&scene, &settings, &observer) {
         Ok(o) => o,
+        Err(RenderError::Cancelled) => {
+            observer.bar.abandon();
+            eprintln!("prism: interrupted; nothing was written");
+            return ExitCode::from(INTERRUPTED);
+        }
         Err(e) => {
-            bar.abandon();
+            observer.bar.abandon();
             eprintln!("error: {e}");
             return ExitCode::FAILURE;
         }
     };
+    let bar = observer.bar;
     bar.finish_and_clear();
     if let Err(e) = write_film(&output.film, &args.output) {
         eprintln!("error: {e}");

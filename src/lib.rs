@@ -19,5 +19,5 @@ pub mod render;
 pub mod scene;
 pub mod shading;
 
-pub use render::{RenderOutput, RenderSettings, render};
+pub use render::{RenderObserver, RenderOutput, RenderSettings, render};
 pub use scene::{Scene, SceneError};

@@ -343,3 +343,45 @@ fn every_example_scene_checks_and_renders() {
     }
     assert!(count >= 5, "{count} scenes");
 }
+
+#[cfg(unix)]
+#[test]
+fn interrupted_render_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/soft-shadows.toml");
+    std::fs::write(dir.path().join("out.png"), b"previous image").unwrap();
+    // A render of a minute or more, interrupted after half a second.
+    let child = Command::new(env!("CARGO_BIN_EXE_prism"))
+        .args([
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            "out.png",
+            "--width",
+            "4000",
+            "--height",
+            "2000",
+        ])
+        .current_dir(dir.path())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
+    assert!(stderr(&o).contains("interrupted; nothing was written"));
+    assert_eq!(
+        std::fs::read(dir.path().join("out.png")).unwrap(),
+        b"previous image"
+    );
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        1,
+        "no stray files"
+    );
+}

@@ -53,7 +53,7 @@ proptest! {
             // What loads also renders.
             Ok(scene) => {
                 let settings = prism::RenderSettings { width: 4, height: 3, spp: 1, threads: Some(1), ..scene.settings };
-                prism::render(&scene, &settings, &|_| {}).unwrap();
+                prism::render(&scene, &settings, &()).unwrap();
             }
         }
     }

@@ -16,7 +16,7 @@ fn film(scene: &Scene, threads: usize) -> Film {
         threads: Some(threads),
         ..scene.settings
     };
-    render(scene, &settings, &|_| {}).unwrap().film
+    render(scene, &settings, &()).unwrap().film
 }
 
 /// A unit-radius object seen from above by an orthographic camera 4 units
@@ -604,7 +604,7 @@ fn adaptive_depth_skips_only_rays_of_negligible_weight() {
                 threads: Some(2),
                 ..s.settings
             },
-            &|_| {},
+            &(),
         )
         .unwrap()
     };

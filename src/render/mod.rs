@@ -106,6 +106,9 @@ impl Default for RenderSettings {
 /// Why a render could not run.
 #[derive(Debug, Error)]
 pub enum RenderError {
+    /// The observer asked the render to stop.
+    #[error("the render was cancelled")]
+    Cancelled,
     /// The settings are out of range (see [`RenderSettings::check`]).
     #[error("{0}")]
     Settings(String),
@@ -153,12 +156,28 @@ fn tiles(width: u32, height: u32) -> Vec<Tile> {
     tiles
 }
 
-/// Renders `scene` with `settings`. `progress` is called from the worker
-/// threads with the number of pixels finished so far.
+/// What the caller of [`render`] sees of it while it runs, and how it stops
+/// it. Both methods are called from the worker threads.
+pub trait RenderObserver: Sync {
+    /// A tile is finished; `pixels_done` pixels are finished so far.
+    fn tile_done(&self, pixels_done: u64) {
+        let _ = pixels_done;
+    }
+
+    /// Whether the render should stop (checked before every row of pixels).
+    fn cancelled(&self) -> bool {
+        false
+    }
+}
+
+/// No progress display, never cancelled.
+impl RenderObserver for () {}
+
+/// Renders `scene` with `settings`, reporting to `observer`.
 pub fn render(
     scene: &Scene,
     settings: &RenderSettings,
-    progress: &(dyn Fn(u64) + Sync),
+    observer: &dyn RenderObserver,
 ) -> Result<RenderOutput, RenderError> {
     settings.check().map_err(RenderError::Settings)?;
     let start = Instant::now();
@@ -178,7 +197,7 @@ pub fn render(
         },
     );
     let done = AtomicU64::new(0);
-    let rendered: Vec<(Tile, Vec<DVec3>, RayStats)> = pool.install(|| {
+    let rendered: Option<Vec<(Tile, Vec<DVec3>, RayStats)>> = pool.install(|| {
         tiles(settings.width, settings.height)
             .into_par_iter()
             .map(|tile| {
@@ -186,16 +205,20 @@ pub fn render(
                 let mut pixels =
                     Vec::with_capacity(((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize);
                 for y in tile.y0..tile.y1 {
+                    if observer.cancelled() {
+                        return None;
+                    }
                     for x in tile.x0..tile.x1 {
                         pixels.push(render_pixel(scene, &tracer, settings, x, y, &mut stats));
                     }
                 }
                 let n = pixels.len() as u64;
-                progress(done.fetch_add(n, Ordering::Relaxed) + n);
-                (tile, pixels, stats)
+                observer.tile_done(done.fetch_add(n, Ordering::Relaxed) + n);
+                Some((tile, pixels, stats))
             })
             .collect()
     });
+    let rendered = rendered.ok_or(RenderError::Cancelled)?;
     let mut film = Film::new(settings.width, settings.height);
     let mut stats = RayStats::default();
     for (tile, pixels, tile_stats) in rendered {
