@@ -5,6 +5,17 @@
 //! (`render`) sends camera rays (`camera`) through the Whitted model
 //! (`shading`), which samples the `lights` with shadow feelers; the film is
 //! written by `image_io`.
+//!
+//! ```
+//! use prism::{RenderSettings, Scene, render};
+//!
+//! let scene = Scene::from_toml(prism::scene::DEFAULT_SCENE, "demo").unwrap();
+//! let settings = RenderSettings { width: 32, height: 24, spp: 1, ..scene.settings };
+//! let output = render(&scene, &settings, &()).unwrap();
+//! assert_eq!(output.film.width(), 32);
+//! assert!(output.stats.camera == 32 * 24);
+//! // prism::image_io::write_film(&output.film, "demo.png".as_ref()) writes it.
+//! ```
 
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
