@@ -7,7 +7,7 @@ use glam::DVec3;
 use crate::geometry::sphere::sphere_roots;
 use crate::math::Frame;
 use crate::math::rng::PixelRng;
-use crate::math::sampling::{stratified_point, uniform_cone};
+use crate::math::sampling::{Strata, uniform_cone};
 
 /// Where light comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -75,8 +75,8 @@ pub enum LightSampler {
         radius: f64,
         /// Distance falloff factor.
         falloff: f64,
-        /// Number of samples.
-        count: usize,
+        /// One stratum of directions per sample.
+        strata: Strata,
     },
 }
 
@@ -116,7 +116,7 @@ impl Light {
                     to_center,
                     radius,
                     falloff: self.falloff(d2),
-                    count: samples.max(1) as usize,
+                    strata: Strata::new(samples as usize),
                 }
             }
         }
@@ -148,7 +148,7 @@ impl LightSampler {
     pub fn count(&self) -> usize {
         match self {
             LightSampler::Fixed(_) => 1,
-            LightSampler::Cone { count, .. } => *count,
+            LightSampler::Cone { strata, .. } => strata.len(),
         }
     }
 
@@ -163,9 +163,9 @@ impl LightSampler {
                 to_center,
                 radius,
                 falloff,
-                count,
+                strata,
             } => {
-                let direction = uniform_cone(&frame, cos_max, stratified_point(index, count, rng));
+                let direction = uniform_cone(&frame, cos_max, strata.point(index, rng));
                 // The feeler ends where the direction meets the sphere; at the
                 // cone's rim rounding may miss it, then the tangent point.
                 let distance = sphere_roots(DVec3::ZERO, direction, to_center, radius)

@@ -6,32 +6,65 @@ use glam::{DVec2, DVec3};
 use super::Frame;
 use super::rng::PixelRng;
 
-/// The cell of stratum `i` out of `n` in the unit square, as (corner, size).
+/// A cut of the unit square into `n` strata of nearly equal area.
 ///
 /// The square is cut into `rows = ⌊√n⌋` rows of equal height; the first
 /// `n mod rows` rows get one extra column, so there are exactly `n` cells of
 /// nearly equal area (equal when `n` is a perfect square).
-pub fn stratum(i: usize, n: usize) -> (DVec2, DVec2) {
-    debug_assert!(i < n);
-    let rows = (n as f64).sqrt().floor().max(1.0) as usize;
-    let base = n / rows;
-    let extra = n % rows;
-    // Rows 0..extra hold base + 1 cells, the rest base cells.
-    let (row, col, cols) = if i < extra * (base + 1) {
-        (i / (base + 1), i % (base + 1), base + 1)
-    } else {
-        let j = i - extra * (base + 1);
-        (extra + j / base, j % base, base)
-    };
-    let size = DVec2::new(1.0 / cols as f64, 1.0 / rows as f64);
-    (DVec2::new(col as f64, row as f64) * size, size)
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Strata {
+    n: usize,
+    rows: usize,
+    /// Columns of the short rows.
+    base: usize,
+    /// Rows with one more column.
+    extra: usize,
 }
 
-/// A jittered point in stratum `i` of `n` (see [`stratum`]).
-#[inline]
-pub fn stratified_point(i: usize, n: usize, rng: &mut PixelRng) -> DVec2 {
-    let (corner, size) = stratum(i, n);
-    corner + size * DVec2::new(rng.uniform(), rng.uniform())
+impl Strata {
+    /// `n` strata (n ≥ 1).
+    pub fn new(n: usize) -> Self {
+        let n = n.max(1);
+        let rows = (n as f64).sqrt().floor().max(1.0) as usize;
+        Strata {
+            n,
+            rows,
+            base: n / rows,
+            extra: n % rows,
+        }
+    }
+
+    /// How many strata.
+    pub fn len(&self) -> usize {
+        self.n
+    }
+
+    /// Never: there is at least one stratum.
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// Stratum `i` as (corner, size).
+    pub fn cell(&self, i: usize) -> (DVec2, DVec2) {
+        debug_assert!(i < self.n);
+        let wide = self.base + 1;
+        // Rows 0..extra hold base + 1 cells, the rest base cells.
+        let (row, col, cols) = if i < self.extra * wide {
+            (i / wide, i % wide, wide)
+        } else {
+            let j = i - self.extra * wide;
+            (self.extra + j / self.base, j % self.base, self.base)
+        };
+        let size = DVec2::new(1.0 / cols as f64, 1.0 / self.rows as f64);
+        (DVec2::new(col as f64, row as f64) * size, size)
+    }
+
+    /// A jittered point in stratum `i`.
+    #[inline]
+    pub fn point(&self, i: usize, rng: &mut PixelRng) -> DVec2 {
+        let (corner, size) = self.cell(i);
+        corner + size * DVec2::new(rng.uniform(), rng.uniform())
+    }
 }
 
 /// A direction uniform over the cone of half-angle θmax around `frame.z`,
@@ -57,15 +90,17 @@ mod tests {
     #[test]
     fn strata_tile_the_square_exactly() {
         for n in 1..=50 {
+            let strata = Strata::new(n);
+            assert_eq!(strata.len(), n);
             let mut area = 0.0;
             for i in 0..n {
-                let (c, s) = stratum(i, n);
+                let (c, s) = strata.cell(i);
                 assert!(c.x >= 0.0 && c.y >= 0.0);
                 assert!(c.x + s.x <= 1.0 + 1e-12 && c.y + s.y <= 1.0 + 1e-12);
                 area += s.x * s.y;
                 // No overlap with any other cell.
                 for j in 0..i {
-                    let (d, t) = stratum(j, n);
+                    let (d, t) = strata.cell(j);
                     let ox = (c.x + s.x).min(d.x + t.x) - c.x.max(d.x);
                     let oy = (c.y + s.y).min(d.y + t.y) - c.y.max(d.y);
                     assert!(
@@ -80,7 +115,7 @@ mod tests {
 
     #[test]
     fn perfect_squares_give_a_regular_grid() {
-        let (c, s) = stratum(5, 9);
+        let (c, s) = Strata::new(9).cell(5);
         assert_eq!(s, DVec2::splat(1.0 / 3.0));
         assert!((c - DVec2::new(2.0 / 3.0, 1.0 / 3.0)).length() < 1e-15);
     }

@@ -16,7 +16,7 @@ use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::math::rng::PixelRng;
-use crate::math::sampling::stratified_point;
+use crate::math::sampling::Strata;
 use crate::scene::Scene;
 use crate::shading::whitted::{Whitted, WhittedSettings};
 
@@ -248,13 +248,14 @@ pub fn render_pixel(
     stats: &mut RayStats,
 ) -> DVec3 {
     let mut rng = PixelRng::new(settings.seed, x, y);
-    let spp = settings.spp.max(1) as usize;
+    let strata = Strata::new(settings.spp as usize);
+    let spp = strata.len();
     let mut sum = DVec3::ZERO;
     for s in 0..spp {
         let offset = if spp == 1 {
             glam::DVec2::splat(0.5)
         } else {
-            stratified_point(s, spp, &mut rng)
+            strata.point(s, &mut rng)
         };
         let ray = scene.camera.ray(
             f64::from(x) + offset.x,
