@@ -18,8 +18,8 @@ pub enum PolygonError {
     /// A non-finite coordinate.
     #[error("vertex {0} is not finite")]
     NotFinite(usize),
-    /// Two vertices coincide.
-    #[error("vertices {0} and {1} coincide")]
+    /// Two neighbouring vertices coincide (a zero-length edge).
+    #[error("vertices {0} and {1} coincide (a zero-length edge)")]
     RepeatedVertex(usize, usize),
     /// All vertices on one line (or one point): no area, no normal.
     #[error("the vertices are collinear: the polygon has zero area")]
@@ -135,7 +135,8 @@ pub fn point_in_polygon(point: DVec2, vertices: &[DVec2]) -> bool {
 
 impl Polygon {
     /// Builds a polygon, checking that the vertices describe one: at least
-    /// three, all distinct, not all collinear, all on one plane.
+    /// three, no two neighbours equal, not all collinear, all on one plane.
+    /// Linear in the number of vertices.
     pub fn new(vertices: Vec<DVec3>) -> Result<Self, PolygonError> {
         if vertices.len() < 3 {
             return Err(PolygonError::TooFewVertices(vertices.len()));
@@ -144,11 +145,14 @@ impl Polygon {
             return Err(PolygonError::NotFinite(i));
         }
         let size = Aabb::from_points(vertices.iter().copied()).diagonal();
+        // Neighbours that coincide make a zero-length edge: a vertex typed
+        // twice, or the first vertex repeated at the end to "close" the
+        // outline. (Coincident vertices that are not neighbours are allowed:
+        // outlines that touch themselves, or bridge to a hole, need them.)
         for i in 0..vertices.len() {
-            for j in i + 1..vertices.len() {
-                if (vertices[i] - vertices[j]).length() <= REPEAT_TOLERANCE * size {
-                    return Err(PolygonError::RepeatedVertex(i, j));
-                }
+            let j = (i + 1) % vertices.len();
+            if (vertices[i] - vertices[j]).length() <= REPEAT_TOLERANCE * size {
+                return Err(PolygonError::RepeatedVertex(i.min(j), i.max(j)));
             }
         }
         let newell = newell_normal(&vertices);
@@ -403,6 +407,16 @@ mod tests {
                 v(0., 1., 0.)
             ]),
             Err(PolygonError::RepeatedVertex(1, 2))
+        );
+        assert_eq!(
+            Polygon::new(vec![
+                v(0., 0., 0.),
+                v(1., 0., 0.),
+                v(0., 1., 0.),
+                v(0., 0., 0.)
+            ]),
+            Err(PolygonError::RepeatedVertex(0, 3)),
+            "closing the loop by repeating the first vertex"
         );
         assert_eq!(
             Polygon::new(vec![v(0., 0., 0.), v(1., 1., 1.), v(2., 2., 2.)]),
