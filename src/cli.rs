@@ -139,6 +139,13 @@ fn render_command(args: &RenderArgs) -> ExitCode {
         );
         return ExitCode::from(BAD_INPUT);
     }
+    if args.output.is_dir() {
+        eprintln!(
+            "error: {}: is a directory; expected an image file name",
+            args.output.display()
+        );
+        return ExitCode::from(BAD_INPUT);
+    }
     let scene = match &args.scene {
         Some(path) => match Scene::load(path) {
             Ok(s) => s,

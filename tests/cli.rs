@@ -303,6 +303,11 @@ fn bad_output_and_missing_scene_are_refused() {
     );
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("does not exist"));
+    std::fs::create_dir(dir.path().join("folder.png")).unwrap();
+    let o = prism(&["render", "scene.toml", "-o", "folder.png"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("is a directory"));
+    std::fs::remove_dir(dir.path().join("folder.png")).unwrap();
     let o = prism(&["render", "missing.toml", "-o", "out.png"], dir.path());
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("missing.toml: cannot read the scene"));
