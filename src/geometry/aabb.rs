@@ -29,9 +29,4 @@ impl Aabb {
     pub fn diagonal(&self) -> f64 {
         (self.max - self.min).length()
     }
-
-    /// Whether `p` lies inside, borders included.
-    pub fn contains(&self, p: DVec3) -> bool {
-        p.cmpge(self.min).all() && p.cmple(self.max).all()
-    }
 }

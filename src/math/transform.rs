@@ -38,11 +38,6 @@ impl Transform {
         })
     }
 
-    /// Applies `self`, then `next`.
-    pub fn then(&self, next: &Transform) -> Option<Transform> {
-        Transform::from_affine(next.to_world * self.to_world)
-    }
-
     /// Maps an object-space point to world space.
     #[inline]
     pub fn point(&self, p: DVec3) -> DVec3 {
