@@ -1,6 +1,8 @@
-//! Renders checked by properties a physicist would check: areas, shadows
-//! without or with penumbra, invisibility of index-matched glass,
-//! symmetry, and determinism across thread counts.
+//! Renders checked by properties a physicist would check: silhouette
+//! areas, shadows without or with penumbra (against a brute-force
+//! reference), pixels computed by hand, the ray tree through glass, the
+//! total-internal-reflection disk, energy in a white furnace, invisibility
+//! of index-matched glass, symmetry, and determinism across thread counts.
 
 use glam::DVec3;
 use prism::render::{Film, render_pixel};
