@@ -2,26 +2,59 @@
 //! hit along a ray, and whether anything blocks a segment (any-hit, for
 //! shadow feelers).
 //!
-//! Shading only sees [`Aggregate`]; how it finds hits (a linear scan today,
-//! a BVH over the bounded primitives next) is its own business.
+//! Bounded primitives sit in a BVH; unbounded ones (planes) are tested one
+//! by one beside it. Shading only sees [`Aggregate`].
 
+pub mod bvh;
 mod primitive;
 
 pub use primitive::{Primitive, Shape};
 
-use crate::geometry::Hit;
+use bvh::{BoxRay, Bvh};
+
+use crate::geometry::{Aabb, Hit};
 use crate::math::Ray;
 
 /// All primitives of a scene, queried as one.
 #[derive(Clone, Debug, Default)]
 pub struct Aggregate {
     primitives: Vec<Primitive>,
+    /// BVH over the bounded primitives.
+    bvh: Bvh,
+    /// Primitive index of each BVH item position (leaf order).
+    leaf_primitives: Vec<u32>,
+    /// Primitives without bounds, tested against every ray.
+    unbounded: Vec<u32>,
 }
 
 impl Aggregate {
-    /// Collects `primitives`; their indices are the `primitive` field of hits.
+    /// Collects `primitives` and builds the BVH over the bounded ones;
+    /// their indices are the `primitive` field of hits.
     pub fn new(primitives: Vec<Primitive>) -> Self {
-        Aggregate { primitives }
+        let mut bounded = Vec::new();
+        let mut boxes = Vec::new();
+        let mut unbounded = Vec::new();
+        for (i, p) in primitives.iter().enumerate() {
+            match p.shape.bounds() {
+                Some(b) => {
+                    bounded.push(i as u32);
+                    boxes.push(b);
+                }
+                None => unbounded.push(i as u32),
+            }
+        }
+        let bvh = Bvh::build(&boxes);
+        let leaf_primitives = bvh
+            .order()
+            .iter()
+            .map(|&item| bounded[item as usize])
+            .collect();
+        Aggregate {
+            primitives,
+            bvh,
+            leaf_primitives,
+            unbounded,
+        }
     }
 
     /// The primitives, indexed as hits name them.
@@ -29,31 +62,57 @@ impl Aggregate {
         &self.primitives
     }
 
+    /// Bounds of the bounded primitives.
+    pub fn bounds(&self) -> Aabb {
+        self.bvh.bounds()
+    }
+
     /// The nearest hit with t in (0, t_max).
     pub fn closest_hit(&self, ray: &Ray, t_max: f64) -> Option<Hit> {
-        let mut closest = t_max;
         let mut found = None;
-        for (index, primitive) in self.primitives.iter().enumerate() {
-            if let Some(h) = primitive.shape.intersect(ray, 0.0, closest) {
+        let mut closest = t_max;
+        for &i in &self.unbounded {
+            if let Some(h) = self.primitives[i as usize]
+                .shape
+                .intersect(ray, 0.0, closest)
+            {
                 closest = h.t;
-                found = Some((index, h));
+                found = Some((i, h));
             }
         }
-        found.map(|(index, h)| Hit {
+        let box_ray = BoxRay::new(ray.origin, ray.direction);
+        self.bvh.closest(&box_ray, closest, |position, t_max| {
+            let i = self.leaf_primitives[position];
+            let h = self.primitives[i as usize]
+                .shape
+                .intersect(ray, 0.0, t_max)?;
+            found = Some((i, h));
+            Some(h.t)
+        });
+        found.map(|(primitive, h)| Hit {
             t: h.t,
             point: ray.at(h.t),
             normal: h.normal,
             front_face: h.front_face,
-            primitive: index as u32,
+            primitive,
         })
     }
 
     /// Whether any primitive is hit with t in (0, t_max); stops at the first
     /// blocker found, never looks for the nearest.
     pub fn any_hit(&self, ray: &Ray, t_max: f64) -> bool {
-        self.primitives
-            .iter()
-            .any(|p| p.shape.intersect(ray, 0.0, t_max).is_some())
+        let hits = |i: u32| {
+            self.primitives[i as usize]
+                .shape
+                .intersect(ray, 0.0, t_max)
+                .is_some()
+        };
+        self.unbounded.iter().any(|&i| hits(i))
+            || self
+                .bvh
+                .any(&BoxRay::new(ray.origin, ray.direction), t_max, |p| {
+                    hits(self.leaf_primitives[p])
+                })
     }
 }
 

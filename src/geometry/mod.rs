@@ -6,6 +6,7 @@ pub mod hit;
 pub mod plane;
 pub mod polygon;
 pub mod sphere;
+pub mod triangle;
 
 pub use aabb::Aabb;
 pub use hit::{Hit, ShapeHit};

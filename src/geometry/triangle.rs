@@ -1,0 +1,261 @@
+//! Watertight ray-triangle intersection (Woop, Benthin, Wald, "Watertight
+//! Ray/Triangle Intersection", JCGT 2013).
+//!
+//! The ray is sheared and scaled into a space where it runs along +z from
+//! the origin; the three edge functions U, V, W are then 2D cross products
+//! of the projected vertices. Two triangles sharing an edge evaluate that
+//! edge's function from the same two vertices, so a ray can never slip
+//! between them: it hits one, or both.
+
+use glam::DVec3;
+
+/// A ray prepared for the watertight test: the axis permutation and shear
+/// depend only on the direction, so they are computed once per ray.
+#[derive(Clone, Copy, Debug)]
+pub struct WatertightRay {
+    origin: DVec3,
+    /// Axis indices: kz is the direction's largest |component|.
+    kx: usize,
+    ky: usize,
+    kz: usize,
+    /// Shear constants Sx = Dx/Dz, Sy = Dy/Dz, Sz = 1/Dz.
+    sx: f64,
+    sy: f64,
+    sz: f64,
+}
+
+impl WatertightRay {
+    /// Prepares a ray with the given origin and (not necessarily unit)
+    /// direction.
+    pub fn new(origin: DVec3, direction: DVec3) -> Self {
+        let a = direction.abs();
+        let kz = if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        // Keep the winding of the projected triangle.
+        if direction[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        WatertightRay {
+            origin,
+            kx,
+            ky,
+            kz,
+            sx: direction[kx] / direction[kz],
+            sy: direction[ky] / direction[kz],
+            sz: 1.0 / direction[kz],
+        }
+    }
+}
+
+/// A ray-triangle hit: parameter and barycentric coordinates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriangleHit {
+    /// Ray parameter.
+    pub t: f64,
+    /// Barycentric weights of vertices a, b, c (sum 1).
+    pub barycentric: DVec3,
+}
+
+/// The watertight test of `ray` against triangle (a, b, c), keeping hits
+/// with t in (t_min, t_max). Both faces count.
+#[inline]
+pub fn triangle_hit(
+    ray: &WatertightRay,
+    a: DVec3,
+    b: DVec3,
+    c: DVec3,
+    t_min: f64,
+    t_max: f64,
+) -> Option<TriangleHit> {
+    let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
+    let a = a - ray.origin;
+    let b = b - ray.origin;
+    let c = c - ray.origin;
+    // Shear the vertices so the ray runs along +z.
+    let ax = a[kx] - ray.sx * a[kz];
+    let ay = a[ky] - ray.sy * a[kz];
+    let bx = b[kx] - ray.sx * b[kz];
+    let by = b[ky] - ray.sy * b[kz];
+    let cx = c[kx] - ray.sx * c[kz];
+    let cy = c[ky] - ray.sy * c[kz];
+    // Scaled barycentrics: 2D edge functions.
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+        return None;
+    }
+    let det = u + v + w;
+    if det == 0.0 {
+        return None;
+    }
+    // Scaled distance, compared before the division.
+    let az = ray.sz * a[kz];
+    let bz = ray.sz * b[kz];
+    let cz = ray.sz * c[kz];
+    let t_scaled = u * az + v * bz + w * cz;
+    let t = t_scaled / det;
+    if !(t > t_min && t < t_max) {
+        return None;
+    }
+    Some(TriangleHit {
+        t,
+        barycentric: DVec3::new(u, v, w) / det,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::rng::PixelRng;
+
+    fn hit(o: DVec3, d: DVec3, tri: [DVec3; 3]) -> Option<TriangleHit> {
+        triangle_hit(
+            &WatertightRay::new(o, d),
+            tri[0],
+            tri[1],
+            tri[2],
+            0.0,
+            f64::INFINITY,
+        )
+    }
+
+    #[test]
+    fn hand_worked_hit_and_barycentrics() {
+        let tri = [DVec3::ZERO, DVec3::X, DVec3::Y];
+        let h = hit(DVec3::new(0.25, 0.5, 2.0), -DVec3::Z, tri).unwrap();
+        assert!((h.t - 2.0).abs() < 1e-15);
+        // Point = 0.25·a + 0.25·b + 0.5·c.
+        assert!((h.barycentric - DVec3::new(0.25, 0.25, 0.5)).length() < 1e-15);
+        // From behind too.
+        assert!(hit(DVec3::new(0.25, 0.5, -2.0), DVec3::Z, tri).is_some());
+        // Outside, parallel, behind the origin.
+        assert!(hit(DVec3::new(0.75, 0.5, 2.0), -DVec3::Z, tri).is_none());
+        assert!(hit(DVec3::new(0.25, 0.25, 1.0), DVec3::X, tri).is_none());
+        assert!(hit(DVec3::new(0.25, 0.25, 1.0), DVec3::Z, tri).is_none());
+    }
+
+    /// An octahedron: closed, every edge shared by two triangles, every
+    /// vertex by four.
+    fn octahedron() -> Vec<[DVec3; 3]> {
+        let p = [
+            DVec3::X,
+            DVec3::Y,
+            DVec3::Z,
+            -DVec3::X,
+            -DVec3::Y,
+            -DVec3::Z,
+        ];
+        let faces = [
+            [0, 1, 2],
+            [1, 3, 2],
+            [3, 4, 2],
+            [4, 0, 2],
+            [1, 0, 5],
+            [3, 1, 5],
+            [4, 3, 5],
+            [0, 4, 5],
+        ];
+        faces.iter().map(|f| [p[f[0]], p[f[1]], p[f[2]]]).collect()
+    }
+
+    #[test]
+    fn rays_at_shared_edges_and_vertices_never_slip_through() {
+        let mesh = octahedron();
+        let mut rng = PixelRng::new(13, 0, 0);
+        let mut targets = vec![
+            DVec3::X,
+            DVec3::Y,
+            DVec3::Z,
+            -DVec3::X,
+            -DVec3::Y,
+            -DVec3::Z,
+        ];
+        // Points exactly on edges (midpoints and random points).
+        for tri in &mesh {
+            for i in 0..3 {
+                let (p, q) = (tri[i], tri[(i + 1) % 3]);
+                targets.push(0.5 * (p + q));
+                let s = rng.uniform();
+                targets.push(p + s * (q - p));
+            }
+        }
+        for target in targets {
+            let mut tried = 0;
+            while tried < 20 {
+                // From a random point outside, aimed at the target, keeping
+                // rays that enter the solid there (not ones that graze it).
+                let dir = DVec3::new(
+                    rng.uniform() - 0.5,
+                    rng.uniform() - 0.5,
+                    rng.uniform() - 0.5,
+                )
+                .normalize();
+                let origin = target + 5.0 * dir;
+                let beyond = target + 1e-6 * (target - origin);
+                if beyond.abs().element_sum() >= 1.0 {
+                    continue;
+                }
+                tried += 1;
+                let ray = WatertightRay::new(origin, target - origin);
+                let hits = mesh
+                    .iter()
+                    .filter_map(|t| triangle_hit(&ray, t[0], t[1], t[2], 0.0, f64::INFINITY))
+                    .count();
+                assert!(hits >= 1, "ray at {target} from {origin} slipped through");
+            }
+        }
+    }
+
+    #[test]
+    fn random_hits_match_a_plane_reference() {
+        let mut rng = PixelRng::new(17, 0, 0);
+        let mut u = || rng.uniform() * 2.0 - 1.0;
+        let mut hits = 0;
+        for _ in 0..20_000 {
+            let tri = [
+                DVec3::new(u(), u(), u()),
+                DVec3::new(u(), u(), u()),
+                DVec3::new(u(), u(), u()),
+            ];
+            let o = DVec3::new(u(), u(), u()) * 3.0;
+            // Aim near the triangle so that about half the rays hit.
+            let w = DVec3::new(u().abs(), u().abs(), u().abs());
+            let aim = (w.x * tri[0] + w.y * tri[1] + w.z * tri[2]) / w.element_sum().max(1e-9);
+            let d = aim + DVec3::new(u(), u(), u()) * 0.3 - o;
+            if let Some(h) = hit(o, d, tri) {
+                hits += 1;
+                let p = o + h.t * d;
+                let from_bary =
+                    h.barycentric.x * tri[0] + h.barycentric.y * tri[1] + h.barycentric.z * tri[2];
+                assert!((p - from_bary).length() < 1e-9, "{p} vs {from_bary}");
+                assert!(h.barycentric.min_element() >= 0.0);
+            } else {
+                // Reference: plane hit, then inside by signed areas.
+                let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+                let denom = n.dot(d);
+                if denom.abs() < 1e-12 {
+                    continue;
+                }
+                let t = n.dot(tri[0] - o) / denom;
+                if t <= 0.0 {
+                    continue;
+                }
+                let p = o + t * d;
+                let inside = (0..3).all(|i| {
+                    let (a, b) = (tri[i], tri[(i + 1) % 3]);
+                    (b - a).cross(p - a).dot(n) > 1e-9 * n.length_squared()
+                });
+                assert!(!inside, "missed an inside point");
+            }
+        }
+        assert!(hits > 5000, "{hits} hits");
+    }
+}
