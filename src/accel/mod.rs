@@ -89,24 +89,26 @@ impl Aggregate {
             found = Some((i, h));
             Some(h.t)
         });
-        found.map(|(primitive, h)| Hit {
-            t: h.t,
-            point: ray.at(h.t),
-            normal: h.normal,
-            front_face: h.front_face,
-            primitive,
+        found.map(|(primitive, h)| {
+            let p = &self.primitives[primitive as usize];
+            let point = ray.at(h.t);
+            Hit {
+                t: h.t,
+                point,
+                normal: h.normal,
+                front_face: h.front_face,
+                shading_normal: h.shading_normal,
+                uv: p.shape.uv(point, &h),
+                primitive,
+                material: h.material.unwrap_or(p.material),
+            }
         })
     }
 
     /// Whether any primitive is hit with t in (0, t_max); stops at the first
     /// blocker found, never looks for the nearest.
     pub fn any_hit(&self, ray: &Ray, t_max: f64) -> bool {
-        let hits = |i: u32| {
-            self.primitives[i as usize]
-                .shape
-                .intersect(ray, 0.0, t_max)
-                .is_some()
-        };
+        let hits = |i: u32| self.primitives[i as usize].shape.occludes(ray, 0.0, t_max);
         self.unbounded.iter().any(|&i| hits(i))
             || self
                 .bvh

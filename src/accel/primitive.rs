@@ -1,6 +1,9 @@
 //! The closed set of shapes, dispatched by `match` on the per-ray path.
 
-use crate::geometry::{Aabb, Ellipsoid, Plane, Polygon, ShapeHit, Sphere};
+use glam::{DVec2, DVec3};
+
+use crate::geometry::{Aabb, Ellipsoid, MeshInstance, Plane, Polygon, ShapeHit, Sphere};
+use crate::math::Frame;
 use crate::math::Ray;
 
 /// Every kind of shape Prism can intersect.
@@ -14,6 +17,8 @@ pub enum Shape {
     Plane(Plane),
     /// A planar polygon.
     Polygon(Polygon),
+    /// A placed triangle mesh.
+    Mesh(MeshInstance),
 }
 
 /// A shape with its material.
@@ -34,6 +39,41 @@ impl Shape {
             Shape::Ellipsoid(e) => e.intersect(ray, t_min, t_max),
             Shape::Plane(p) => p.intersect(ray, t_min, t_max),
             Shape::Polygon(p) => p.intersect(ray, t_min, t_max),
+            Shape::Mesh(m) => m.intersect(ray, t_min, t_max),
+        }
+    }
+
+    /// Whether the shape is hit with t in (t_min, t_max) (any-hit: meshes
+    /// stop at the first triangle found).
+    #[inline]
+    pub fn occludes(&self, ray: &Ray, t_min: f64, t_max: f64) -> bool {
+        match self {
+            Shape::Mesh(m) => m.any_hit(ray, t_min, t_max),
+            other => other.intersect(ray, t_min, t_max).is_some(),
+        }
+    }
+
+    /// Texture coordinates at `point` of `hit`: spheres and ellipsoids by
+    /// longitude and latitude (u = 0.5 + atan2(z, x)/2π, v = 0.5 + asin(y)/π
+    /// on the unit sphere), planes and polygons by coordinates in the plane,
+    /// meshes by what the hit carries.
+    pub fn uv(&self, point: DVec3, hit: &ShapeHit) -> DVec2 {
+        let spherical = |p: DVec3| {
+            DVec2::new(
+                0.5 + p.z.atan2(p.x) / std::f64::consts::TAU,
+                0.5 + p.y.clamp(-1.0, 1.0).asin() / std::f64::consts::PI,
+            )
+        };
+        let planar = |normal: DVec3| {
+            let f = Frame::from_z(normal);
+            DVec2::new(point.dot(f.x), point.dot(f.y))
+        };
+        match self {
+            Shape::Sphere(s) => spherical((point - s.center) / s.radius),
+            Shape::Ellipsoid(e) => spherical(e.transform.to_object.transform_point3(point)),
+            Shape::Plane(p) => planar(p.normal),
+            Shape::Polygon(p) => planar(p.plane.normal),
+            Shape::Mesh(_) => hit.uv,
         }
     }
 
@@ -45,6 +85,7 @@ impl Shape {
             Shape::Ellipsoid(e) => Some(e.bounds()),
             Shape::Plane(_) => None,
             Shape::Polygon(p) => Some(p.bounds()),
+            Shape::Mesh(m) => Some(m.bounds()),
         }
     }
 }

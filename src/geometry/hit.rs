@@ -1,6 +1,6 @@
 //! What a shape reports about a ray hit.
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 
 /// A ray-shape intersection, before the aggregate adds which primitive it was.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -13,6 +13,29 @@ pub struct ShapeHit {
     /// True when the ray arrives from the outside (D·N < 0); false for a
     /// back-face hit or a hit from inside a closed shape.
     pub front_face: bool,
+    /// Unit normal for shading (interpolated on smooth meshes; else `normal`).
+    pub shading_normal: DVec3,
+    /// Texture coordinates, where the shape computes them during the test
+    /// (meshes); analytic shapes give theirs after the closest hit is known.
+    pub uv: DVec2,
+    /// A material chosen by the shape itself (a mesh's per-triangle
+    /// material), overriding the primitive's.
+    pub material: Option<u32>,
+}
+
+impl ShapeHit {
+    /// A hit on a shape with one normal and no material of its own.
+    #[inline]
+    pub fn geometric(t: f64, normal: DVec3, front_face: bool) -> Self {
+        ShapeHit {
+            t,
+            normal,
+            front_face,
+            shading_normal: normal,
+            uv: DVec2::ZERO,
+            material: None,
+        }
+    }
 }
 
 /// The closest hit along a ray, as the aggregate reports it to shading.
@@ -26,6 +49,12 @@ pub struct Hit {
     pub normal: DVec3,
     /// The ray arrives from the outside (D·N < 0).
     pub front_face: bool,
+    /// Unit normal for shading, on the same side as `normal`.
+    pub shading_normal: DVec3,
+    /// Texture coordinates.
+    pub uv: DVec2,
     /// Index of the primitive hit.
     pub primitive: u32,
+    /// Index of the material at the hit.
+    pub material: u32,
 }

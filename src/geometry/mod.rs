@@ -3,6 +3,8 @@
 
 pub mod aabb;
 pub mod hit;
+pub mod instance;
+pub mod mesh;
 pub mod plane;
 pub mod polygon;
 pub mod sphere;
@@ -10,6 +12,8 @@ pub mod triangle;
 
 pub use aabb::Aabb;
 pub use hit::{Hit, ShapeHit};
+pub use instance::MeshInstance;
+pub use mesh::{Mesh, MeshData, MeshError};
 pub use plane::Plane;
 pub use polygon::{Polygon, PolygonError};
 pub use sphere::{Ellipsoid, Sphere};

@@ -68,11 +68,8 @@ impl Plane {
     /// Intersects `ray`; see [`plane_hit`].
     #[inline]
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
-        plane_hit(self.normal, self.distance, ray, t_min, t_max).map(|h| ShapeHit {
-            t: h.t,
-            normal: self.normal,
-            front_face: !h.back_face,
-        })
+        plane_hit(self.normal, self.distance, ray, t_min, t_max)
+            .map(|h| ShapeHit::geometric(h.t, self.normal, !h.back_face))
     }
 }
 

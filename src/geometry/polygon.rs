@@ -206,11 +206,11 @@ impl Polygon {
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
         let h = plane_hit(self.plane.normal, self.plane.distance, ray, t_min, t_max)?;
         let p = project(ray.at(h.t), self.principal_axis);
-        point_in_polygon(p, &self.projected).then_some(ShapeHit {
-            t: h.t,
-            normal: self.plane.normal,
-            front_face: !h.back_face,
-        })
+        point_in_polygon(p, &self.projected).then_some(ShapeHit::geometric(
+            h.t,
+            self.plane.normal,
+            !h.back_face,
+        ))
     }
 }
 

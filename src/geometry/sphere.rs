@@ -66,11 +66,11 @@ impl Sphere {
         let roots = sphere_roots(ray.origin, ray.direction, self.center, self.radius)?;
         let t = nearest_root(roots, t_min, t_max)?;
         let normal = (ray.at(t) - self.center) / self.radius;
-        Some(ShapeHit {
+        Some(ShapeHit::geometric(
             t,
             normal,
-            front_face: ray.direction.dot(normal) < 0.0,
-        })
+            ray.direction.dot(normal) < 0.0,
+        ))
     }
 
     /// The bounding box.
@@ -101,11 +101,11 @@ impl Ellipsoid {
         let roots = sphere_roots(origin, direction, DVec3::ZERO, 1.0)?;
         let t = nearest_root(roots, t_min, t_max)?;
         let normal = self.transform.normal(origin + t * direction);
-        Some(ShapeHit {
+        Some(ShapeHit::geometric(
             t,
             normal,
-            front_face: ray.direction.dot(normal) < 0.0,
-        })
+            ray.direction.dot(normal) < 0.0,
+        ))
     }
 
     /// The bounding box: along world axis i the half extent is the length of

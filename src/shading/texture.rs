@@ -1,6 +1,6 @@
 //! Surface colour Od as a function of position.
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 
 /// A colour pattern over space.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -20,9 +20,11 @@ pub enum Texture {
 }
 
 impl Texture {
-    /// The colour at `point` on a surface with outward `normal`.
+    /// The colour at `point` on a surface with outward `normal` and
+    /// texture coordinates `uv`.
     #[inline]
-    pub fn color(&self, point: DVec3, normal: DVec3) -> DVec3 {
+    pub fn color(&self, point: DVec3, normal: DVec3, uv: DVec2) -> DVec3 {
+        let _ = uv;
         match *self {
             Texture::Solid(c) => c,
             Texture::Checker { even, odd, size } => {
@@ -53,12 +55,24 @@ mod tests {
             size: 2.0,
         };
         let n = DVec3::Y;
-        assert_eq!(t.color(DVec3::new(1.0, 0.0, 1.0), n), DVec3::ZERO);
-        assert_eq!(t.color(DVec3::new(3.0, 0.0, 1.0), n), DVec3::ONE);
-        assert_eq!(t.color(DVec3::new(-1.0, 0.0, 1.0), n), DVec3::ONE);
+        assert_eq!(
+            t.color(DVec3::new(1.0, 0.0, 1.0), n, DVec2::ZERO),
+            DVec3::ZERO
+        );
+        assert_eq!(
+            t.color(DVec3::new(3.0, 0.0, 1.0), n, DVec2::ZERO),
+            DVec3::ONE
+        );
+        assert_eq!(
+            t.color(DVec3::new(-1.0, 0.0, 1.0), n, DVec2::ZERO),
+            DVec3::ONE
+        );
         // Rounding noise around y = 0 does not change the cell.
         for dy in [-1e-15, 0.0, 1e-15] {
-            assert_eq!(t.color(DVec3::new(1.0, dy, 1.0), n), DVec3::ZERO);
+            assert_eq!(
+                t.color(DVec3::new(1.0, dy, 1.0), n, DVec2::ZERO),
+                DVec3::ZERO
+            );
         }
     }
 }

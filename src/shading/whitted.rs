@@ -166,16 +166,22 @@ impl<'a> Whitted<'a> {
         let Some(hit) = self.scene.aggregate.closest_hit(ray, f64::INFINITY) else {
             return self.scene.background;
         };
-        let material_index = self.scene.aggregate.primitives()[hit.primitive as usize].material;
+        let material_index = hit.material;
         let material = &self.scene.materials[material_index as usize];
         // Shading normal faces the incoming ray; "entering" by the sign of I·N.
         let entering = ray.direction.dot(hit.normal) < 0.0;
         let point = ShadingPoint {
             hit,
-            n: if entering { hit.normal } else { -hit.normal },
+            // Shade with the (possibly interpolated) shading normal, on the
+            // incoming side like the geometric one.
+            n: if entering {
+                hit.shading_normal
+            } else {
+                -hit.shading_normal
+            },
             view: -ray.direction,
             material,
-            od: material.texture.color(hit.point, hit.normal),
+            od: material.texture.color(hit.point, hit.normal, hit.uv),
         };
 
         let mut color = material.ka * point.od * self.scene.ambient;
@@ -305,8 +311,7 @@ impl<'a> Whitted<'a> {
             let Some(blocker) = self.scene.aggregate.closest_hit(&feeler, remaining) else {
                 return transmission;
             };
-            let primitive = &self.scene.aggregate.primitives()[blocker.primitive as usize];
-            transmission *= self.scene.materials[primitive.material as usize].kt;
+            transmission *= self.scene.materials[blocker.material as usize].kt;
             if transmission < 1e-6 {
                 return 0.0;
             }

@@ -1,0 +1,74 @@
+//! A mesh placed in the scene: shared mesh data (loaded and built once,
+//! however many times it is placed) plus this placement's transform and
+//! materials. Together with the scene BVH over instances this is a
+//! two-level BVH.
+
+use std::sync::Arc;
+
+use super::{Aabb, Mesh, ShapeHit};
+use crate::math::{Ray, Transform};
+
+/// One placement of a mesh.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshInstance {
+    /// The shared mesh, in object space.
+    pub mesh: Arc<Mesh>,
+    /// Object to world; `None` when the mesh is placed as it is.
+    pub transform: Option<Transform>,
+    /// Scene material index for each of the mesh's material slots (at
+    /// least one; slots past the end use the first).
+    pub materials: Arc<[u32]>,
+}
+
+impl MeshInstance {
+    /// The ray in object space: the direction is mapped but not
+    /// renormalised, so t means the same in both spaces.
+    #[inline]
+    fn local(&self, ray: &Ray) -> (glam::DVec3, glam::DVec3) {
+        match &self.transform {
+            None => (ray.origin, ray.direction),
+            Some(t) => (
+                t.to_object.transform_point3(ray.origin),
+                t.to_object.transform_vector3(ray.direction),
+            ),
+        }
+    }
+
+    /// The nearest hit with t in (t_min, t_max).
+    pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
+        let (origin, direction) = self.local(ray);
+        let h = self.mesh.intersect(origin, direction, t_min, t_max)?;
+        let (normal, shading_normal) = match &self.transform {
+            None => (h.normal, h.shading_normal),
+            Some(t) => (t.normal(h.normal), t.normal(h.shading_normal)),
+        };
+        let material = self
+            .materials
+            .get(h.material as usize)
+            .or(self.materials.first())
+            .copied();
+        Some(ShapeHit {
+            t: h.t,
+            normal,
+            front_face: ray.direction.dot(normal) < 0.0,
+            shading_normal,
+            uv: h.uv,
+            material,
+        })
+    }
+
+    /// Whether any triangle is hit with t in (t_min, t_max).
+    pub fn any_hit(&self, ray: &Ray, t_min: f64, t_max: f64) -> bool {
+        let (origin, direction) = self.local(ray);
+        self.mesh.any_hit(origin, direction, t_min, t_max)
+    }
+
+    /// World-space bounds.
+    pub fn bounds(&self) -> Aabb {
+        let b = self.mesh.bounds();
+        match &self.transform {
+            None => b,
+            Some(t) => b.transformed(|p| t.point(p)),
+        }
+    }
+}
