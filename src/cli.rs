@@ -109,6 +109,9 @@ fn report_scene_error(e: &SceneError) -> ExitCode {
 fn check(path: &Path) -> ExitCode {
     match Scene::load(path) {
         Ok(scene) => {
+            for w in &scene.warnings {
+                eprintln!("warning: {w}");
+            }
             println!(
                 "{}: ok ({} objects, {} lights, {} materials)",
                 path.display(),
@@ -153,6 +156,11 @@ fn render_command(args: &RenderArgs) -> ExitCode {
         },
         None => Scene::demo(),
     };
+    if !args.quiet {
+        for w in &scene.warnings {
+            eprintln!("warning: {w}");
+        }
+    }
     let settings = RenderSettings {
         width: args.width.unwrap_or(scene.settings.width),
         height: args.height.unwrap_or(scene.settings.height),

@@ -157,7 +157,7 @@ fn missing_required_field_is_refused() {
     assert_rejected(
         &GOOD.replace("material = \"red\"", ""),
         "18:1",
-        "missing field `material`",
+        "objects[0]: a sphere needs `material`",
     );
     assert_rejected(
         &GOOD.replace("look_at = [0, 0, 0]", ""),

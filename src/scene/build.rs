@@ -3,6 +3,8 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::ops::Range;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use glam::{DAffine3, DMat3, DMat4, DQuat, DVec3, DVec4};
 use toml::Spanned;
@@ -10,17 +12,25 @@ use toml::Spanned;
 use super::Scene;
 use super::error::Diagnostics;
 use super::format::*;
+use super::models::load_model;
 use crate::accel::{Aggregate, Primitive, Shape};
 use crate::camera::{Camera, FovAxis, Projection};
-use crate::geometry::{Ellipsoid, Plane, Polygon, Sphere};
+use crate::geometry::{Ellipsoid, Mesh, MeshInstance, Plane, Polygon, Sphere};
 use crate::lights::{Light, LightShape};
 use crate::math::Transform;
 use crate::render::{RenderSettings, limits};
 use crate::shading::{Fresnel, Highlight, Material, Texture};
 
 /// Builds the runtime scene; `None` if any problem was recorded.
-pub fn build(file: SceneFile, diags: &mut Diagnostics) -> Option<Scene> {
-    let mut c = Check { diags };
+pub fn build(file: SceneFile, base_dir: &Path, diags: &mut Diagnostics) -> Option<Scene> {
+    let mut c = Check {
+        diags,
+        base_dir: base_dir.to_path_buf(),
+        materials: Vec::new(),
+        models: BTreeMap::new(),
+        default_material: None,
+        warnings: Vec::new(),
+    };
     let settings = c.settings(&file.render);
     let background = file
         .render
@@ -45,10 +55,10 @@ pub fn build(file: SceneFile, diags: &mut Diagnostics) -> Option<Scene> {
         }
     };
     let mut material_index = BTreeMap::new();
-    let mut materials = Vec::new();
     for (name, desc) in &file.materials {
-        material_index.insert(name.as_str(), materials.len() as u32);
-        materials.push(c.material(name, desc));
+        material_index.insert(name.as_str(), c.materials.len() as u32);
+        let m = c.material(name, desc);
+        c.materials.push(m);
     }
     let lights = file
         .lights
@@ -67,7 +77,8 @@ pub fn build(file: SceneFile, diags: &mut Diagnostics) -> Option<Scene> {
     Some(Scene {
         camera: camera?,
         aggregate: Aggregate::new(primitives),
-        materials,
+        materials: c.materials,
+        warnings: c.warnings,
         lights,
         background,
         ambient,
@@ -78,6 +89,15 @@ pub fn build(file: SceneFile, diags: &mut Diagnostics) -> Option<Scene> {
 
 struct Check<'d, 's> {
     diags: &'d mut Diagnostics<'s>,
+    /// Model paths are relative to this (the scene file's folder).
+    base_dir: PathBuf,
+    /// The scene's materials: the file's, then those models bring.
+    materials: Vec<Material>,
+    /// Models loaded so far, by path: placing a model again shares its mesh.
+    models: BTreeMap<PathBuf, (Arc<Mesh>, Arc<[u32]>)>,
+    /// Index of the grey material for models that bring none.
+    default_material: Option<u32>,
+    warnings: Vec<String>,
 }
 
 impl Check<'_, '_> {
@@ -379,26 +399,16 @@ impl Check<'_, '_> {
             None => format!("objects[{index}]"),
         };
         let kind_name = kind.name();
-        let material = match materials.get(d.material.get_ref().as_str()) {
-            Some(&m) => Some(m),
-            // Its own error is already reported.
-            None if unparsed.contains(&format!("materials.{}", d.material.get_ref())) => None,
+        let material = match &d.material {
+            None if kind == ObjectKind::Mesh => None,
             None => {
-                let known: Vec<_> = materials.keys().map(|k| format!("`{k}`")).collect();
-                let known = if known.is_empty() {
-                    "none is defined".to_string()
-                } else {
-                    known.join(", ")
-                };
                 self.error(
-                    d.material.span(),
-                    format!(
-                        "{label}: unknown material `{}`; known: {known}",
-                        d.material.get_ref()
-                    ),
+                    desc.span(),
+                    format!("{label}: a {kind_name} needs `material`"),
                 );
                 None
             }
+            Some(name) => self.material_named(name, materials, unparsed, &label),
         };
         let transform = self.transform(d.transform.as_deref().unwrap_or_default(), &label);
         // Keys that belong to other kinds of object.
@@ -406,6 +416,7 @@ impl Check<'_, '_> {
             ObjectKind::Sphere => &["center", "radius"],
             ObjectKind::Plane => &["normal", "distance", "point"],
             ObjectKind::Polygon => &["vertices"],
+            ObjectKind::Mesh => &["file"],
         };
         let present = [
             ("center", d.center.as_ref().map(Spanned::span)),
@@ -414,6 +425,7 @@ impl Check<'_, '_> {
             ("distance", d.distance.as_ref().map(Spanned::span)),
             ("point", d.point.as_ref().map(Spanned::span)),
             ("vertices", d.vertices.as_ref().map(Spanned::span)),
+            ("file", d.file.as_ref().map(Spanned::span)),
         ];
         for (key, span) in present {
             if let Some(span) = span.filter(|_| !allowed.contains(&key)) {
@@ -424,6 +436,79 @@ impl Check<'_, '_> {
             }
         }
         let shape = match kind {
+            ObjectKind::Mesh => {
+                let Some(file) = &d.file else {
+                    self.error(desc.span(), format!("{label}: a mesh needs `file`"));
+                    return None;
+                };
+                let has_transform = d.transform.as_ref().is_some_and(|t| !t.is_empty());
+                let transform = transform?;
+                let (mesh, slots) = self.model(file, &label)?;
+                let materials: Arc<[u32]> = match (&d.material, material) {
+                    (Some(_), Some(m)) => Arc::new([m]),
+                    (Some(_), None) => return None,
+                    (None, _) => slots,
+                };
+                let first = materials[0];
+                return Some(Primitive {
+                    shape: Shape::Mesh(MeshInstance {
+                        mesh,
+                        transform: has_transform.then_some(transform),
+                        materials,
+                    }),
+                    material: first,
+                });
+            }
+            _ => self.analytic_shape(kind, d, desc, &label, transform)?,
+        };
+        Some(Primitive {
+            shape,
+            material: material?,
+        })
+    }
+
+    /// The index of material `name`, or an error listing the known ones.
+    fn material_named(
+        &mut self,
+        name: &Spanned<String>,
+        materials: &BTreeMap<&str, u32>,
+        unparsed: &BTreeSet<String>,
+        label: &str,
+    ) -> Option<u32> {
+        match materials.get(name.get_ref().as_str()) {
+            Some(&m) => Some(m),
+            // Its own error is already reported.
+            None if unparsed.contains(&format!("materials.{}", name.get_ref())) => None,
+            None => {
+                let known: Vec<_> = materials.keys().map(|k| format!("`{k}`")).collect();
+                let known = if known.is_empty() {
+                    "none is defined".to_string()
+                } else {
+                    known.join(", ")
+                };
+                self.error(
+                    name.span(),
+                    format!(
+                        "{label}: unknown material `{}`; known: {known}",
+                        name.get_ref()
+                    ),
+                );
+                None
+            }
+        }
+    }
+
+    /// The geometry of a sphere, plane or polygon object.
+    fn analytic_shape(
+        &mut self,
+        kind: ObjectKind,
+        d: &ObjectDesc,
+        desc: &Spanned<ObjectDesc>,
+        label: &str,
+        transform: Option<Transform>,
+    ) -> Option<Shape> {
+        Some(match kind {
+            ObjectKind::Mesh => return None,
             ObjectKind::Sphere => {
                 let center = d
                     .center
@@ -491,11 +576,45 @@ impl Check<'_, '_> {
                     }
                 }
             }
-        };
-        Some(Primitive {
-            shape,
-            material: material?,
         })
+    }
+
+    /// The mesh and material slots of the model `file`, loaded once however
+    /// often it is placed.
+    fn model(&mut self, file: &Spanned<String>, label: &str) -> Option<(Arc<Mesh>, Arc<[u32]>)> {
+        let path = self.base_dir.join(file.get_ref());
+        let key = path.canonicalize().unwrap_or_else(|_| path.clone());
+        if let Some(found) = self.models.get(&key) {
+            return Some(found.clone());
+        }
+        let model = match load_model(&path) {
+            Ok(m) => m,
+            Err(e) => {
+                self.error(file.span(), format!("{label}: {e}"));
+                return None;
+            }
+        };
+        let mesh = match Mesh::new(model.mesh) {
+            Ok(m) => Arc::new(m),
+            Err(e) => {
+                self.error(file.span(), format!("{label}: {}: {e}", path.display()));
+                return None;
+            }
+        };
+        let slots: Arc<[u32]> = if model.materials.is_empty() {
+            let default = *self.default_material.get_or_insert_with(|| {
+                self.materials.push(Material::default());
+                self.materials.len() as u32 - 1
+            });
+            Arc::new([default])
+        } else {
+            let first = self.materials.len() as u32;
+            self.materials.extend(model.materials);
+            (first..self.materials.len() as u32).collect()
+        };
+        self.warnings.extend(model.warnings);
+        self.models.insert(key, (mesh.clone(), slots.clone()));
+        Some((mesh, slots))
     }
 
     /// The steps composed in order: the first step acts on the object first.

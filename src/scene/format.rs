@@ -223,6 +223,8 @@ pub enum ObjectKind {
     Plane,
     /// Planar polygon.
     Polygon,
+    /// Triangle mesh from a model file.
+    Mesh,
 }
 
 impl ObjectKind {
@@ -232,6 +234,7 @@ impl ObjectKind {
             ObjectKind::Sphere => "sphere",
             ObjectKind::Plane => "plane",
             ObjectKind::Polygon => "polygon",
+            ObjectKind::Mesh => "mesh",
         }
     }
 }
@@ -245,8 +248,10 @@ pub struct ObjectDesc {
     pub kind: Spanned<ObjectKind>,
     /// Optional name used in messages.
     pub name: Option<String>,
-    /// Name of a material.
-    pub material: Spanned<String>,
+    /// Name of a material (for meshes: overrides the model's own).
+    pub material: Option<Spanned<String>>,
+    /// Model file (meshes), relative to the scene file.
+    pub file: Option<Spanned<String>>,
     /// Sphere centre.
     pub center: Option<Triple>,
     /// Sphere radius.

@@ -6,6 +6,7 @@ pub mod build;
 pub mod error;
 pub mod format;
 pub mod load;
+pub mod models;
 
 pub use error::{Diagnostic, SceneError};
 
@@ -42,14 +43,23 @@ pub struct Scene {
     pub transparent_shadows: bool,
     /// The render settings the file asks for.
     pub settings: RenderSettings,
+    /// What loading noticed but could use anyway (ignored parts of models).
+    pub warnings: Vec<String>,
 }
 
 impl Scene {
-    /// Parses and validates scene text; `origin` names it in messages.
-    /// Every problem found is reported, not just the first.
+    /// Parses and validates scene text; `origin` names it in messages and
+    /// model files are looked up from the current folder. Every problem
+    /// found is reported, not just the first.
     pub fn from_toml(source: &str, origin: &str) -> Result<Scene, SceneError> {
+        Scene::from_toml_in(source, origin, Path::new("."))
+    }
+
+    /// [`from_toml`](Self::from_toml) with model paths relative to `base_dir`.
+    pub fn from_toml_in(source: &str, origin: &str, base_dir: &Path) -> Result<Scene, SceneError> {
         let mut diags = error::Diagnostics::new(source);
-        let scene = load::parse(source, &mut diags).and_then(|file| build::build(file, &mut diags));
+        let scene = load::parse(source, &mut diags)
+            .and_then(|file| build::build(file, base_dir, &mut diags));
         match scene {
             Some(scene) if diags.is_empty() => Ok(scene),
             _ => Err(SceneError::Invalid {
@@ -67,7 +77,13 @@ impl Scene {
         })?;
         let origin = path.display().to_string();
         match String::from_utf8(bytes) {
-            Ok(source) => Scene::from_toml(&source, &origin),
+            Ok(source) => {
+                let base_dir = path
+                    .parent()
+                    .filter(|p| !p.as_os_str().is_empty())
+                    .unwrap_or(Path::new("."));
+                Scene::from_toml_in(&source, &origin, base_dir)
+            }
             Err(e) => {
                 let valid = std::str::from_utf8(&e.as_bytes()[..e.utf8_error().valid_up_to()])
                     .unwrap_or_default();

@@ -52,6 +52,24 @@ pub struct Material {
     pub highlight: Highlight,
 }
 
+impl Default for Material {
+    /// A plain grey diffuse surface, what models without materials get.
+    fn default() -> Self {
+        Material {
+            texture: Texture::Solid(DVec3::splat(0.8)),
+            ka: 0.1,
+            kd: 0.8,
+            ks: 0.0,
+            shininess: 32.0,
+            kr: 0.0,
+            kt: 0.0,
+            ior: 1.0,
+            fresnel: Fresnel::Off,
+            highlight: Highlight::Phong,
+        }
+    }
+}
+
 impl Material {
     /// The local (Phong) term of the Whitted model for one light direction,
     /// per unit of light: kd·Od·max(0, N·L) + ks·max(0, R·V)ⁿ with

@@ -1,0 +1,76 @@
+//! Model files → mesh data and materials: OBJ + MTL (tobj), PLY (ply-rs-bw)
+//! and glTF 2.0 (gltf). Errors name the file and, where the format has
+//! them, the line or element.
+
+mod obj;
+mod ply;
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use crate::geometry::MeshData;
+use crate::shading::Material;
+
+/// A model file, read: one mesh and the materials its triangles use.
+#[derive(Debug)]
+pub struct Model {
+    /// The triangles (material slots index `materials`).
+    pub mesh: MeshData,
+    /// Materials by slot; empty when the file brings none.
+    pub materials: Vec<Material>,
+    /// Things read but not used, for the user to know.
+    pub warnings: Vec<String>,
+}
+
+/// Why a model file could not be used.
+#[derive(Debug, PartialEq, Eq)]
+pub struct ModelError {
+    /// The file.
+    pub path: PathBuf,
+    /// The line (text formats), when known.
+    pub line: Option<usize>,
+    /// What is wrong, naming the element where the format has no lines.
+    pub message: String,
+}
+
+impl fmt::Display for ModelError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.line {
+            Some(line) => write!(f, "{}:{line}: {}", self.path.display(), self.message),
+            None => write!(f, "{}: {}", self.path.display(), self.message),
+        }
+    }
+}
+
+impl ModelError {
+    fn new(path: &Path, line: Option<usize>, message: impl Into<String>) -> Self {
+        ModelError {
+            path: path.to_path_buf(),
+            line,
+            message: message.into(),
+        }
+    }
+}
+
+/// Reads the model at `path`, choosing the format by extension.
+pub fn load_model(path: &Path) -> Result<Model, ModelError> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("obj") => obj::load(path),
+        Some("ply") => ply::load(path),
+        _ => Err(ModelError::new(
+            path,
+            None,
+            "unknown model format; expected a .obj or .ply file",
+        )),
+    }
+}
+
+/// Splits each polygon (vertex indices in order) into a fan of triangles,
+/// which is exact for the convex polygons models are made of.
+pub(crate) fn fan(polygon: &[u32]) -> impl Iterator<Item = [u32; 3]> + '_ {
+    (1..polygon.len().saturating_sub(1)).map(move |i| [polygon[0], polygon[i], polygon[i + 1]])
+}

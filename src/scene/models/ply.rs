@@ -1,0 +1,185 @@
+//! PLY (ASCII and binary) through ply-rs-bw: vertices with optional
+//! normals and texture coordinates, faces of any size (fan-triangulated).
+
+use std::path::Path;
+
+use glam::{DVec2, DVec3};
+use ply_rs_bw::parser::Parser;
+use ply_rs_bw::ply::{Property, PropertyAccess};
+
+use super::{Model, ModelError, fan};
+use crate::geometry::MeshData;
+
+#[derive(Default)]
+struct Vertex {
+    position: [f64; 3],
+    normal: [f64; 3],
+    uv: [f64; 2],
+}
+
+#[derive(Default)]
+struct Face {
+    indices: Vec<i64>,
+}
+
+fn scalar(p: &Property) -> Option<f64> {
+    Some(match *p {
+        Property::Char(v) => v as f64,
+        Property::UChar(v) => v as f64,
+        Property::Short(v) => v as f64,
+        Property::UShort(v) => v as f64,
+        Property::Int(v) => v as f64,
+        Property::UInt(v) => v as f64,
+        Property::Float(v) => v as f64,
+        Property::Double(v) => v,
+        _ => return None,
+    })
+}
+
+fn list(p: Property) -> Option<Vec<i64>> {
+    Some(match p {
+        Property::ListChar(v) => v.into_iter().map(i64::from).collect(),
+        Property::ListUChar(v) => v.into_iter().map(i64::from).collect(),
+        Property::ListShort(v) => v.into_iter().map(i64::from).collect(),
+        Property::ListUShort(v) => v.into_iter().map(i64::from).collect(),
+        Property::ListInt(v) => v.into_iter().map(i64::from).collect(),
+        Property::ListUInt(v) => v.into_iter().map(i64::from).collect(),
+        _ => return None,
+    })
+}
+
+impl PropertyAccess for Vertex {
+    fn new() -> Self {
+        Vertex::default()
+    }
+    fn set_property(&mut self, key: &str, property: Property) {
+        let Some(v) = scalar(&property) else { return };
+        match key {
+            "x" => self.position[0] = v,
+            "y" => self.position[1] = v,
+            "z" => self.position[2] = v,
+            "nx" => self.normal[0] = v,
+            "ny" => self.normal[1] = v,
+            "nz" => self.normal[2] = v,
+            "u" | "s" | "texture_u" | "texture_s" => self.uv[0] = v,
+            "v" | "t" | "texture_v" | "texture_t" => self.uv[1] = v,
+            _ => {}
+        }
+    }
+}
+
+impl PropertyAccess for Face {
+    fn new() -> Self {
+        Face::default()
+    }
+    fn set_property(&mut self, key: &str, property: Property) {
+        if key == "vertex_indices" || key == "vertex_index" {
+            if let Some(l) = list(property) {
+                self.indices = l;
+            }
+        }
+    }
+}
+
+pub fn load(path: &Path) -> Result<Model, ModelError> {
+    let err = |message: String| ModelError::new(path, None, message);
+    let file = std::fs::File::open(path).map_err(|e| err(format!("cannot read: {e}")))?;
+    let mut reader = std::io::BufReader::new(file);
+    let vertex_parser = Parser::<Vertex>::new();
+    let face_parser = Parser::<Face>::new();
+    let header = vertex_parser
+        .read_header(&mut reader)
+        .map_err(|e| err(format!("bad PLY header: {e}")))?;
+    let mut vertices = Vec::new();
+    let mut faces = Vec::new();
+    let mut warnings = Vec::new();
+    let (mut has_normals, mut has_uvs) = (false, false);
+    for (name, element) in &header.elements {
+        let truncated = |e: std::io::Error| {
+            let what = if e.kind() == std::io::ErrorKind::UnexpectedEof {
+                "the file ends early (truncated?)".to_string()
+            } else {
+                e.to_string()
+            };
+            err(format!(
+                "element `{name}` ({} announced): {what}",
+                element.count
+            ))
+        };
+        match name.as_str() {
+            "vertex" => {
+                has_normals = element.properties.contains_key("nx");
+                has_uvs = ["u", "s", "texture_u", "texture_s"]
+                    .iter()
+                    .any(|k| element.properties.contains_key(*k));
+                vertices = vertex_parser
+                    .read_payload_for_element(&mut reader, element, &header)
+                    .map_err(truncated)?;
+            }
+            "face" => {
+                faces = face_parser
+                    .read_payload_for_element(&mut reader, element, &header)
+                    .map_err(truncated)?;
+            }
+            other => {
+                // Elements after the ones we need may be skipped by reading
+                // them as faces (their data must still be consumed).
+                warnings.push(format!("{}: element `{other}` ignored", path.display()));
+                face_parser
+                    .read_payload_for_element(&mut reader, element, &header)
+                    .map_err(truncated)?;
+            }
+        }
+    }
+    let count = vertices.len();
+    let mut triangles = Vec::with_capacity(faces.len());
+    for (i, face) in faces.iter().enumerate() {
+        if face.indices.len() < 3 {
+            return Err(err(format!(
+                "face {i} has {} vertices; at least 3 are needed",
+                face.indices.len()
+            )));
+        }
+        if let Some(&bad) = face.indices.iter().find(|&&k| k < 0 || k as usize >= count) {
+            return Err(err(format!(
+                "face {i} refers to vertex {bad}, but there are {count} vertices"
+            )));
+        }
+        let polygon: Vec<u32> = face.indices.iter().map(|&k| k as u32).collect();
+        triangles.extend(fan(&polygon));
+    }
+    if let Some(i) = vertices
+        .iter()
+        .position(|v| !v.position.iter().all(|c| c.is_finite()))
+    {
+        return Err(err(format!(
+            "vertex {i} has a coordinate that is not a finite number"
+        )));
+    }
+    let mesh = MeshData {
+        positions: vertices
+            .iter()
+            .map(|v| DVec3::from_array(v.position))
+            .collect(),
+        normals: if has_normals {
+            vertices
+                .iter()
+                .map(|v| DVec3::from_array(v.normal))
+                .collect()
+        } else {
+            Vec::new()
+        },
+        uvs: if has_uvs {
+            vertices.iter().map(|v| DVec2::from_array(v.uv)).collect()
+        } else {
+            Vec::new()
+        },
+        triangles,
+        materials: Vec::new(),
+    };
+    Ok(Model {
+        mesh,
+        materials: Vec::new(),
+        warnings,
+    })
+}
