@@ -1,0 +1,207 @@
+//! Model files: meshes load, instance, render, and bad files give clear
+//! errors naming the file and the line or element.
+
+use std::path::Path;
+
+use prism::accel::Shape;
+use prism::{RenderSettings, Scene, render};
+
+fn scene_with(dir: &Path, object: &str) -> Result<Scene, String> {
+    let toml = format!(
+        "[render]\nwidth = 100\nheight = 100\nspp = 1\nambient = [1, 1, 1]\n\
+         [camera]\ntype = \"orthographic\"\nposition = [0, 0, 10]\nlook_at = [0, 0, 0]\nview_height = 4\n\
+         [materials.white]\nka = 1\nkd = 0\n\
+         [[objects]]\ntype = \"mesh\"\nmaterial = \"white\"\n{object}\n"
+    );
+    std::fs::write(dir.join("scene.toml"), toml).unwrap();
+    Scene::load(&dir.join("scene.toml")).map_err(|e| e.to_string())
+}
+
+fn models_dir() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/models")
+}
+
+#[test]
+fn binary_ply_icosphere_covers_nearly_pi_r_squared() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = models_dir().join("icosphere.ply");
+    let s = scene_with(dir.path(), &format!("file = {:?}", file.to_str().unwrap())).unwrap();
+    let out = render(
+        &s,
+        &RenderSettings {
+            threads: Some(2),
+            ..s.settings
+        },
+        &(),
+    )
+    .unwrap();
+    let lit = out.film.pixels().iter().filter(|p| p.x > 0.5).count() as f64;
+    let area = lit * (4.0f64 / 100.0).powi(2);
+    // A 1280-triangle icosphere is a little smaller than its sphere (its
+    // outline lies within 1% of the circle); pixels add a little noise.
+    assert!(
+        (area - std::f64::consts::PI).abs() / std::f64::consts::PI < 0.02,
+        "area {area}"
+    );
+}
+
+#[test]
+fn a_model_placed_twice_is_loaded_once() {
+    let s = Scene::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/models.toml")).unwrap();
+    let meshes: Vec<_> = s
+        .aggregate
+        .primitives()
+        .iter()
+        .filter_map(|p| match &p.shape {
+            Shape::Mesh(m) => Some(m.mesh.clone()),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(meshes.len(), 5);
+    // Three placements of the icosphere share one mesh.
+    assert!(std::sync::Arc::ptr_eq(&meshes[0], &meshes[1]));
+    assert!(std::sync::Arc::ptr_eq(&meshes[0], &meshes[2]));
+    assert!(!std::sync::Arc::ptr_eq(&meshes[0], &meshes[3]));
+}
+
+fn expect_error(dir: &Path, file: &str, contents: &[u8], wanted: &[&str]) {
+    std::fs::write(dir.join(file), contents).unwrap();
+    let err = scene_with(dir, &format!("file = {file:?}")).unwrap_err();
+    assert!(err.contains("scene.toml:"), "{err}");
+    for w in wanted {
+        assert!(err.contains(w), "want {w:?} in: {err}");
+    }
+}
+
+#[test]
+fn obj_faces_past_the_vertex_list_are_located() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 7\n";
+    expect_error(
+        dir.path(),
+        "bad.obj",
+        obj,
+        &["bad.obj:5:", "vertex 7, but only 3"],
+    );
+}
+
+#[test]
+fn obj_nan_coordinates_are_located() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = b"v 0 0 0\nv 1 NaN 0\nv 0 1 0\nf 1 2 3\n";
+    expect_error(
+        dir.path(),
+        "nan.obj",
+        obj,
+        &["nan.obj:2:", "not a finite number"],
+    );
+}
+
+#[test]
+fn missing_texture_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("t.mtl"),
+        "newmtl m\nKd 1 1 1\nmap_Kd nowhere.png\n",
+    )
+    .unwrap();
+    let obj = b"mtllib t.mtl\nusemtl m\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n";
+    expect_error(dir.path(), "t.obj", obj, &["t.obj", "nowhere.png"]);
+}
+
+fn binary_ply(vertices: &[[f32; 3]], faces: &[[i32; 3]], announced_faces: usize) -> Vec<u8> {
+    let mut b = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
+         element face {announced_faces}\nproperty list uchar int vertex_indices\nend_header\n",
+        vertices.len()
+    )
+    .into_bytes();
+    for v in vertices {
+        for c in v {
+            b.extend(c.to_le_bytes());
+        }
+    }
+    for f in faces {
+        b.push(3);
+        for i in f {
+            b.extend(i.to_le_bytes());
+        }
+    }
+    b
+}
+
+#[test]
+fn truncated_binary_ply_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let ply = binary_ply(
+        &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        &[[0, 1, 2]],
+        5,
+    );
+    expect_error(
+        dir.path(),
+        "cut.ply",
+        &ply,
+        &["cut.ply", "element `face` (5 announced)", "truncated"],
+    );
+}
+
+#[test]
+fn ply_faces_past_the_vertex_list_name_the_face() {
+    let dir = tempfile::tempdir().unwrap();
+    let ply = binary_ply(
+        &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        &[[0, 1, 2], [0, 1, 9]],
+        2,
+    );
+    expect_error(
+        dir.path(),
+        "far.ply",
+        &ply,
+        &[
+            "far.ply",
+            "face 1 refers to vertex 9, but there are 3 vertices",
+        ],
+    );
+}
+
+#[test]
+fn ascii_ply_with_quads_loads() {
+    let dir = tempfile::tempdir().unwrap();
+    let ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty double x\nproperty double y\nproperty double z\n\
+               element face 1\nproperty list uchar uint vertex_indices\nend_header\n\
+               -1 -1 0\n1 -1 0\n1 1 0\n-1 1 0\n4 0 1 2 3\n";
+    std::fs::write(dir.path().join("quad.ply"), ply).unwrap();
+    let s = scene_with(dir.path(), "file = \"quad.ply\"").unwrap();
+    let out = render(
+        &s,
+        &RenderSettings {
+            threads: Some(1),
+            ..s.settings
+        },
+        &(),
+    )
+    .unwrap();
+    let lit = out.film.pixels().iter().filter(|p| p.x > 0.5).count();
+    // A 2×2 square in a 4×4 view: a quarter of the pixels.
+    assert_eq!(lit, 2500);
+}
+
+#[test]
+fn unknown_model_format_and_missing_file_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    expect_error(
+        dir.path(),
+        "x.stl",
+        b"solid",
+        &["x.stl", "expected a .obj or .ply"],
+    );
+    let err = scene_with(dir.path(), "file = \"missing.obj\"").unwrap_err();
+    assert!(
+        err.contains("missing.obj") && err.contains("cannot read"),
+        "{err}"
+    );
+    // `file` only applies to meshes; meshes need one.
+    let err = scene_with(dir.path(), "").unwrap_err();
+    assert!(err.contains("a mesh needs `file`"), "{err}");
+}
