@@ -1,0 +1,133 @@
+#!/usr/bin/env python3
+"""Prism's mesh ray queries against Embree (embreex) on the same meshes and
+the same rays, in the same run.
+
+Meshes: the Stanford bunny (npm package `bunny`, installed into bench/) and a
+procedural terrain of about one million triangles written by this script.
+For each: Prism (examples/meshbench.rs) loads, builds and times (a) primary
+camera rays 1024x1024, (b) incoherent rays, (c) shadow any-hit rays, single
+threaded and on all threads; then Embree builds and traces the very same
+rays (embreex traces on one thread, so the single-threaded ratio is the
+like-for-like one). Prints one table with Prism/Embree ratios.
+
+Set-up: bench/setup.sh. Usage: bench/.venv/bin/python bench/meshes.py [--incoherent N]
+"""
+
+import argparse
+import json
+import os
+import re
+import struct
+import subprocess
+import tempfile
+import time
+
+import numpy as np
+from embreex import rtcore_scene as rtcs
+from embreex.mesh_construction import TriangleMesh
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+BENCH = os.path.join(ROOT, "bench")
+DATA = os.path.join(BENCH, "data")
+
+
+def write_ply(path, vertices, faces):
+    with open(path, "wb") as f:
+        f.write(b"ply\nformat binary_little_endian 1.0\n")
+        f.write(b"element vertex %d\nproperty float x\nproperty float y\nproperty float z\n" % len(vertices))
+        f.write(b"element face %d\nproperty list uchar int vertex_indices\nend_header\n" % len(faces))
+        f.write(np.asarray(vertices, dtype="<f4").tobytes())
+        rec = np.zeros(len(faces), dtype=[("n", "u1"), ("i", "<i4", 3)])
+        rec["n"] = 3
+        rec["i"] = faces
+        f.write(rec.tobytes())
+
+
+def bunny():
+    """The Stanford bunny from the npm package `bunny`, as binary PLY."""
+    path = os.path.join(DATA, "bunny.ply")
+    if os.path.exists(path):
+        return path
+    module = os.path.join(BENCH, "node_modules", "bunny", "index.js")
+    if not os.path.exists(module):
+        subprocess.run(["npm", "install", "--prefix", BENCH, "--no-save", "--silent", "bunny@1.0.1"], check=True)
+    text = open(module).read()
+    grab = lambda name: json.loads(re.search(r"exports\." + name + r"\s*=\s*(\[.*?\]\])", text, re.S).group(1))
+    write_ply(path, grab("positions"), grab("cells"))
+    return path
+
+
+def terrain(n=708):
+    """A rolling heightfield of 2·(n−1)² ≈ 1M triangles, as binary PLY."""
+    path = os.path.join(DATA, f"terrain{n}.ply")
+    if os.path.exists(path):
+        return path
+    u = np.linspace(-1.0, 1.0, n)
+    x, z = np.meshgrid(u, u)
+    y = 0.08 * np.sin(9 * x) * np.cos(7 * z) + 0.05 * np.sin(23 * x + 11 * z) + 0.02 * np.cos(61 * z - 37 * x)
+    vertices = np.stack([x, y, z], axis=-1).reshape(-1, 3)
+    i = np.arange(n - 1)
+    a = (i[:, None] * n + i[None, :]).reshape(-1)
+    faces = np.concatenate([np.stack([a, a + n, a + 1], 1), np.stack([a + 1, a + n, a + n + 1], 1)])
+    write_ply(path, vertices, faces)
+    return path
+
+
+def load_rays(path):
+    r = np.fromfile(path, dtype="<f4").reshape(-1, 7)
+    return np.ascontiguousarray(r[:, :3]), np.ascontiguousarray(r[:, 3:6]), np.ascontiguousarray(r[:, 6])
+
+
+def best_of_3(run):
+    best, out = float("inf"), None
+    for _ in range(3):
+        start = time.perf_counter()
+        out = run()
+        best = min(best, time.perf_counter() - start)
+    return best, out
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--incoherent", type=int, default=1 << 20)
+    args = parser.parse_args()
+    os.makedirs(DATA, exist_ok=True)
+    subprocess.run(["cargo", "build", "--release", "--quiet", "--example", "meshbench"], cwd=ROOT, check=True)
+    exe = os.path.join(ROOT, "target", "release", "examples", "meshbench")
+    rows = []
+    for name, path in [("bunny", bunny()), ("terrain 1M", terrain())]:
+        with tempfile.TemporaryDirectory() as out:
+            prism = json.loads(subprocess.run([exe, path, out, str(args.incoherent)], check=True,
+                                              capture_output=True, text=True).stdout)
+            triangles = np.fromfile(os.path.join(out, "triangles.f32"), dtype="<f4").reshape(-1, 3, 3)
+            rays = {k: load_rays(os.path.join(out, k + ".f32")) for k in ("primary", "incoherent", "shadow")}
+        start = time.perf_counter()
+        scene = rtcs.EmbreeScene()
+        TriangleMesh(scene, triangles)
+        scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))  # commit: build the BVH
+        embree_build = time.perf_counter() - start
+        rows.append((name, "triangles", prism["triangles"], None, None, None))
+        rows.append((name, "build s (Prism load+build / Embree)", prism["load_s"] + prism["build_s"], None, embree_build, None))
+        rows.append((name, "Prism mesh MB / peak RSS MB", prism["mesh_mb"], prism["peak_rss_mb"], None, None))
+        for kind in ("primary", "incoherent", "shadow"):
+            o, d, t = rays[kind]
+            if kind == "shadow":
+                secs, res = best_of_3(lambda: scene.run(o, d, query="OCCLUDED", dists=t))
+                hits = int((res >= 0).sum())
+            else:
+                secs, res = best_of_3(lambda: scene.run(o, d))
+                hits = int((res >= 0).sum())
+            e_rate = len(o) / secs / 1e6
+            p = prism[kind]
+            agree = abs(hits - p["hits"]) <= max(2, len(o) * 1e-3)
+            rows.append((name, f"{kind} Mrays/s (1 thread, all threads)", p["mrays_1"], p["mrays_n"], e_rate,
+                         (p["mrays_1"] / e_rate, agree)))
+    print(f"{'mesh':<11} {'measure':<38} {'prism':>10} {'prism all':>10} {'embree':>10} {'prism/embree':>13} {'hits agree':>10}")
+    for name, what, a, b, e, ratio in rows:
+        fmt = lambda v: f"{v:>10.3f}" if isinstance(v, float) else (f"{v:>10}" if v is not None else " " * 10)
+        r = f"{ratio[0]:>12.2f}x {str(ratio[1]):>10}" if ratio else ""
+        print(f"{name:<11} {what:<38} {fmt(a)} {fmt(b)} {fmt(e)} {r}")
+
+
+if __name__ == "__main__":
+    main()

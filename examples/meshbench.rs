@@ -1,0 +1,223 @@
+//! Ray-query throughput of Prism's mesh BVH, for `bench/meshes.py`, which
+//! measures Embree on the same rays in the same run.
+//!
+//! Usage: cargo run --release --example meshbench -- MODEL OUT_DIR [INCOHERENT_RAYS]
+//! Times the load and the build, then (a) 1024×1024 primary camera rays
+//! (closest hit), (b) incoherent rays (random origins in the bounding box,
+//! random directions; closest hit), (c) shadow rays from the primary hits
+//! to a point light (any hit), each single-threaded and on all threads
+//! (best of 3). Writes the rays for Embree to OUT_DIR (f32: origin,
+//! direction, t_max per ray) with the triangles, and prints one JSON line.
+
+use std::io::Write;
+use std::path::Path;
+use std::time::Instant;
+
+use glam::DVec3;
+use prism::geometry::Mesh;
+use prism::math::Frame;
+use prism::math::rng::PixelRng;
+use prism::scene::models::load_model;
+use rayon::prelude::*;
+
+struct Rays {
+    origins: Vec<DVec3>,
+    directions: Vec<DVec3>,
+    t_max: Vec<f64>,
+}
+
+impl Rays {
+    fn write(&self, path: &Path) -> std::io::Result<()> {
+        let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
+        for i in 0..self.origins.len() {
+            for v in [self.origins[i].to_array(), self.directions[i].to_array()].concat() {
+                f.write_all(&(v as f32).to_le_bytes())?;
+            }
+            f.write_all(&(self.t_max[i].min(f32::MAX as f64) as f32).to_le_bytes())?;
+        }
+        f.flush()
+    }
+}
+
+/// Best of 3 wall times of `run`, and its result.
+fn best_of_3<T>(mut run: impl FnMut() -> T) -> (f64, T) {
+    let mut best = f64::INFINITY;
+    let mut out = None;
+    for _ in 0..3 {
+        let start = Instant::now();
+        let r = run();
+        best = best.min(start.elapsed().as_secs_f64());
+        out = Some(r);
+    }
+    (best, out.expect("ran"))
+}
+
+fn peak_rss_mb() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
+        })
+        .map_or(f64::NAN, |kb| kb / 1024.0)
+}
+
+fn main() -> anyhow::Result<()> {
+    let args: Vec<String> = std::env::args().collect();
+    anyhow::ensure!(
+        args.len() >= 3,
+        "usage: meshbench MODEL OUT_DIR [INCOHERENT_RAYS]"
+    );
+    let out = Path::new(&args[2]);
+    let incoherent_count: usize = args.get(3).map_or(Ok(1 << 20), |s| s.parse())?;
+
+    let start = Instant::now();
+    let model = load_model(Path::new(&args[1])).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let load_s = start.elapsed().as_secs_f64();
+    let triangles_in = model.mesh.clone();
+    let start = Instant::now();
+    let mesh = Mesh::new(model.mesh)?;
+    let build_s = start.elapsed().as_secs_f64();
+
+    // (a) primary rays: a pinhole camera 40° wide looking at the model.
+    let bounds = mesh.bounds();
+    let center = bounds.centroid();
+    let radius = 0.5 * bounds.diagonal();
+    let eye = center + DVec3::new(0.3, 0.4, 1.0).normalize() * radius * 2.6;
+    let frame = Frame::from_z((center - eye).normalize());
+    let side = 1024usize;
+    let half = (20f64).to_radians().tan();
+    let mut primary = Rays {
+        origins: vec![],
+        directions: vec![],
+        t_max: vec![],
+    };
+    for y in 0..side {
+        for x in 0..side {
+            let sx = (2.0 * (x as f64 + 0.5) / side as f64 - 1.0) * half;
+            let sy = (1.0 - 2.0 * (y as f64 + 0.5) / side as f64) * half;
+            primary.origins.push(eye);
+            primary
+                .directions
+                .push(frame.to_world(DVec3::new(sx, sy, 1.0)).normalize());
+            primary.t_max.push(f64::INFINITY);
+        }
+    }
+    // (b) incoherent rays.
+    let mut rng = PixelRng::new(2026, 0, 0);
+    let mut incoherent = Rays {
+        origins: vec![],
+        directions: vec![],
+        t_max: vec![],
+    };
+    let extent = bounds.max - bounds.min;
+    while incoherent.origins.len() < incoherent_count {
+        let d = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 2.0 - 1.0;
+        if d.length_squared() > 1.0 || d.length_squared() < 1e-6 {
+            continue;
+        }
+        incoherent
+            .origins
+            .push(bounds.min + extent * DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()));
+        incoherent.directions.push(d.normalize());
+        incoherent.t_max.push(f64::INFINITY);
+    }
+    // (c) shadow rays from the primary hits towards a light above the model.
+    let light = center + DVec3::new(-0.5, 1.0, 0.6).normalize() * radius * 3.0;
+    let mut shadow = Rays {
+        origins: vec![],
+        directions: vec![],
+        t_max: vec![],
+    };
+    for i in 0..primary.origins.len() {
+        if let Some(h) = mesh.intersect(
+            primary.origins[i],
+            primary.directions[i],
+            0.0,
+            f64::INFINITY,
+        ) {
+            let p = primary.origins[i] + h.t * primary.directions[i];
+            let to_light = light - p;
+            let n = if h.normal.dot(to_light) > 0.0 {
+                h.normal
+            } else {
+                -h.normal
+            };
+            let o = p + n * 1e-6 * radius;
+            shadow.origins.push(o);
+            shadow.directions.push((light - o).normalize());
+            shadow.t_max.push((light - o).length());
+        }
+    }
+
+    let closest_1 = |r: &Rays| {
+        (0..r.origins.len())
+            .filter(|&i| {
+                mesh.intersect(r.origins[i], r.directions[i], 0.0, r.t_max[i])
+                    .is_some()
+            })
+            .count()
+    };
+    let closest_n = |r: &Rays| {
+        (0..r.origins.len())
+            .into_par_iter()
+            .filter(|&i| {
+                mesh.intersect(r.origins[i], r.directions[i], 0.0, r.t_max[i])
+                    .is_some()
+            })
+            .count()
+    };
+    let any_1 = |r: &Rays| {
+        (0..r.origins.len())
+            .filter(|&i| mesh.any_hit(r.origins[i], r.directions[i], 0.0, r.t_max[i]))
+            .count()
+    };
+    let any_n = |r: &Rays| {
+        (0..r.origins.len())
+            .into_par_iter()
+            .filter(|&i| mesh.any_hit(r.origins[i], r.directions[i], 0.0, r.t_max[i]))
+            .count()
+    };
+    let (p1, primary_hits) = best_of_3(|| closest_1(&primary));
+    let (pn, _) = best_of_3(|| closest_n(&primary));
+    let (i1, incoherent_hits) = best_of_3(|| closest_1(&incoherent));
+    let (i_n, _) = best_of_3(|| closest_n(&incoherent));
+    let (s1, shadow_hits) = best_of_3(|| any_1(&shadow));
+    let (sn, _) = best_of_3(|| any_n(&shadow));
+
+    primary.write(&out.join("primary.f32"))?;
+    incoherent.write(&out.join("incoherent.f32"))?;
+    shadow.write(&out.join("shadow.f32"))?;
+    let mut f = std::io::BufWriter::new(std::fs::File::create(out.join("triangles.f32"))?);
+    for t in &triangles_in.triangles {
+        for &i in t {
+            for c in triangles_in.positions[i as usize].to_array() {
+                f.write_all(&(c as f32).to_le_bytes())?;
+            }
+        }
+    }
+    f.flush()?;
+    let rate = |n: usize, s: f64| n as f64 / s / 1e6;
+    println!(
+        "{{\"triangles\": {}, \"load_s\": {load_s}, \"build_s\": {build_s}, \"mesh_mb\": {}, \"peak_rss_mb\": {}, \
+         \"threads\": {}, \
+         \"primary\": {{\"rays\": {}, \"hits\": {primary_hits}, \"mrays_1\": {}, \"mrays_n\": {}}}, \
+         \"incoherent\": {{\"rays\": {}, \"hits\": {incoherent_hits}, \"mrays_1\": {}, \"mrays_n\": {}}}, \
+         \"shadow\": {{\"rays\": {}, \"hits\": {shadow_hits}, \"mrays_1\": {}, \"mrays_n\": {}}}}}",
+        mesh.triangle_count(),
+        mesh.memory_bytes() as f64 / 1e6,
+        peak_rss_mb(),
+        rayon::current_num_threads(),
+        primary.origins.len(),
+        rate(primary.origins.len(), p1),
+        rate(primary.origins.len(), pn),
+        incoherent.origins.len(),
+        rate(incoherent.origins.len(), i1),
+        rate(incoherent.origins.len(), i_n),
+        shadow.origins.len(),
+        rate(shadow.origins.len(), s1),
+        rate(shadow.origins.len(), sn),
+    );
+    Ok(())
+}
