@@ -3,7 +3,7 @@
 //! early-exit any-hit traversal. Generic over what the leaves hold: the
 //! caller supplies the leaf test.
 
-use glam::DVec3;
+use glam::{DVec3, Vec3A};
 
 use crate::geometry::Aabb;
 
@@ -18,29 +18,65 @@ const PARALLEL_THRESHOLD: usize = 16 * 1024;
 /// Traversal stack depth; SAH trees over f64 inputs stay far shallower.
 const STACK: usize = 96;
 
-/// One node of the flattened tree. Interior: children at `index + 1` and
-/// `offset`; leaf: items `offset .. offset + count` of the item order.
+/// One node of the flattened tree, 32 bytes: two nodes per cache line.
+/// Interior: children at `index + 1` and `offset`; leaf: items
+/// `offset .. offset + count` of the item order. The box is stored in f32,
+/// rounded outwards, so it always contains the exact f64 box.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BvhNode {
-    bounds: Aabb,
+    min: [f32; 3],
+    max: [f32; 3],
     offset: u32,
     count: u16,
     axis: u8,
+}
+
+impl BvhNode {
+    fn new(bounds: &Aabb, offset: u32, count: u16, axis: u8) -> Self {
+        // Round outwards by a relative margin well above f32 rounding of
+        // both the box and the ray origin, so no hit is ever culled.
+        let pad = (bounds.max - bounds.min).abs().max_element() * 1e-6;
+        let lo = |v: f64| {
+            let f = (v - pad - v.abs() * 1e-6) as f32;
+            if (f as f64) > v { f.next_down() } else { f }
+        };
+        let hi = |v: f64| {
+            let f = (v + pad + v.abs() * 1e-6) as f32;
+            if (f as f64) < v { f.next_up() } else { f }
+        };
+        BvhNode {
+            min: bounds.min.to_array().map(lo),
+            max: bounds.max.to_array().map(hi),
+            offset,
+            count,
+            axis,
+        }
+    }
+
+    /// The stored (outward-rounded) box.
+    pub fn bounds(&self) -> Aabb {
+        Aabb {
+            min: DVec3::from_array(self.min.map(f64::from)),
+            max: DVec3::from_array(self.max.map(f64::from)),
+        }
+    }
 }
 
 /// A BVH over items numbered 0..n.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Bvh {
     nodes: Vec<BvhNode>,
+    /// Exact bounds of everything.
+    bounds: Aabb,
     /// Item numbers in leaf order.
     order: Vec<u32>,
 }
 
-/// A ray prepared for box tests.
+/// A ray prepared for box tests (in f32, four lanes at a time).
 #[derive(Clone, Copy, Debug)]
 pub struct BoxRay {
-    origin: DVec3,
-    inv_dir: DVec3,
+    origin: Vec3A,
+    inv_dir: Vec3A,
     negative: [bool; 3],
 }
 
@@ -57,8 +93,8 @@ impl BoxRay {
             1.0 / safe(direction.z),
         );
         BoxRay {
-            origin,
-            inv_dir,
+            origin: origin.as_vec3().into(),
+            inv_dir: inv_dir.as_vec3().into(),
             negative: [inv_dir.x < 0.0, inv_dir.y < 0.0, inv_dir.z < 0.0],
         }
     }
@@ -67,12 +103,12 @@ impl BoxRay {
     /// enlarged by a few ulps so that rounding cannot miss a box that a
     /// primitive inside it is hit in (Ize 2013).
     #[inline]
-    fn hits(&self, b: &Aabb, t_max: f64) -> bool {
-        let t0 = (b.min - self.origin) * self.inv_dir;
-        let t1 = (b.max - self.origin) * self.inv_dir;
+    fn hits(&self, node: &BvhNode, t_max: f64) -> bool {
+        let t0 = (Vec3A::from_array(node.min) - self.origin) * self.inv_dir;
+        let t1 = (Vec3A::from_array(node.max) - self.origin) * self.inv_dir;
         let near = t0.min(t1).max_element().max(0.0);
-        let far = t0.max(t1).min_element() * (1.0 + 4.0 * f64::EPSILON);
-        near <= far.min(t_max)
+        let far = t0.max(t1).min_element() * (1.0 + 8.0 * f32::EPSILON);
+        near <= far.min(t_max as f32)
     }
 }
 
@@ -99,6 +135,7 @@ impl Bvh {
             .collect();
         let nodes = build_node(&mut items);
         Bvh {
+            bounds: bounds.iter().fold(Aabb::EMPTY, |b, i| b.union(i)),
             nodes,
             order: items.iter().map(|i| i.index).collect(),
         }
@@ -116,7 +153,7 @@ impl Bvh {
 
     /// Bounds of everything in the tree.
     pub fn bounds(&self) -> Aabb {
-        self.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds)
+        self.bounds
     }
 
     /// Closest-hit traversal: visits leaves front to back and calls
@@ -138,7 +175,7 @@ impl Bvh {
         let mut current = 0usize;
         loop {
             let node = &self.nodes[current];
-            if ray.hits(&node.bounds, t_max) {
+            if ray.hits(node, t_max) {
                 if node.count > 0 {
                     let start = node.offset as usize;
                     for position in start..start + node.count as usize {
@@ -181,7 +218,7 @@ impl Bvh {
         let mut current = 0usize;
         loop {
             let node = &self.nodes[current];
-            if ray.hits(&node.bounds, t_max) {
+            if ray.hits(node, t_max) {
                 if node.count > 0 {
                     let start = node.offset as usize;
                     if (start..start + node.count as usize).any(&mut test) {
@@ -209,14 +246,7 @@ impl Bvh {
 /// with offsets relative to the start of `items` and of the array.
 fn build_node(items: &mut [BuildItem]) -> Vec<BvhNode> {
     let bounds = items.iter().fold(Aabb::EMPTY, |b, i| b.union(&i.bounds));
-    let leaf = |count: usize| {
-        vec![BvhNode {
-            bounds,
-            offset: 0,
-            count: count as u16,
-            axis: 0,
-        }]
-    };
+    let leaf = |count: usize| vec![BvhNode::new(&bounds, 0, count as u16, 0)];
     let n = items.len();
     if n == 1 {
         return leaf(1);
@@ -226,29 +256,29 @@ fn build_node(items: &mut [BuildItem]) -> Vec<BvhNode> {
         max: b.max.max(i.centroid),
     });
     let extent = centroids.max - centroids.min;
-    let axis = if extent.x >= extent.y && extent.x >= extent.z {
+    let widest = if extent.x >= extent.y && extent.x >= extent.z {
         0
     } else if extent.y >= extent.z {
         1
     } else {
         2
     };
-    let mid = if extent[axis] <= 0.0 {
+    let (mid, axis) = if extent[widest] <= 0.0 {
         // All centroids coincide: no split separates them.
         if n <= MAX_LEAF {
             return leaf(n);
         }
-        n / 2
+        (n / 2, widest)
     } else {
-        match sah_split(items, &centroids, axis, bounds.surface_area()) {
-            Some(mid) => mid,
+        match sah_split(items, &centroids, bounds.surface_area()) {
+            Some(split) => split,
             None if n <= MAX_LEAF => return leaf(n),
             None => {
                 // The SAH prefers a leaf but it would be too big: median.
                 items.select_nth_unstable_by(n / 2, |a, b| {
-                    a.centroid[axis].total_cmp(&b.centroid[axis])
+                    a.centroid[widest].total_cmp(&b.centroid[widest])
                 });
-                n / 2
+                (n / 2, widest)
             }
         }
     };
@@ -259,12 +289,12 @@ fn build_node(items: &mut [BuildItem]) -> Vec<BvhNode> {
         (build_node(left_items), build_node(right_items))
     };
     let mut nodes = Vec::with_capacity(1 + left.len() + right.len());
-    nodes.push(BvhNode {
-        bounds,
-        offset: (1 + left.len()) as u32,
-        count: 0,
-        axis: axis as u8,
-    });
+    nodes.push(BvhNode::new(
+        &bounds,
+        (1 + left.len()) as u32,
+        0,
+        axis as u8,
+    ));
     append(&mut nodes, left, 1, 0);
     let base = nodes.len() as u32;
     append(&mut nodes, right, base, mid as u32);
@@ -283,41 +313,45 @@ fn append(nodes: &mut Vec<BvhNode>, subtree: Vec<BvhNode>, node_base: u32, item_
     }));
 }
 
-/// The binned SAH split of `items` along `axis`: partitions them and
-/// returns the split position, or `None` when a leaf is cheaper.
-fn sah_split(items: &mut [BuildItem], centroids: &Aabb, axis: usize, area: f64) -> Option<usize> {
-    let lo = centroids.min[axis];
-    let scale = BINS as f64 / (centroids.max[axis] - lo);
-    let bin_of = |c: f64| (((c - lo) * scale) as usize).min(BINS - 1);
-    let mut bin_bounds = [Aabb::EMPTY; BINS];
-    let mut bin_counts = [0usize; BINS];
-    for item in items.iter() {
-        let b = bin_of(item.centroid[axis]);
-        bin_counts[b] += 1;
-        bin_bounds[b] = bin_bounds[b].union(&item.bounds);
-    }
-    // Sweep from the right to get the cost of each right side.
-    let mut right_area = [0.0; BINS];
-    let mut right_count = [0usize; BINS];
-    let (mut acc, mut count) = (Aabb::EMPTY, 0);
-    for b in (1..BINS).rev() {
-        acc = acc.union(&bin_bounds[b]);
-        count += bin_counts[b];
-        right_area[b] = acc.surface_area();
-        right_count[b] = count;
-    }
-    let (mut best_cost, mut best_bin) = (f64::INFINITY, 0);
-    let (mut acc, mut count) = (Aabb::EMPTY, 0);
-    for b in 1..BINS {
-        acc = acc.union(&bin_bounds[b - 1]);
-        count += bin_counts[b - 1];
-        if count == 0 || right_count[b] == 0 {
-            continue;
+/// The binned SAH split of `items`: the cheapest bin boundary over the
+/// three axes. Partitions the items and returns (split position, axis), or
+/// `None` when a leaf is cheaper.
+fn sah_split(items: &mut [BuildItem], centroids: &Aabb, area: f64) -> Option<(usize, usize)> {
+    let extent = centroids.max - centroids.min;
+    let bin_of = |axis: usize, c: f64| {
+        let scale = BINS as f64 / extent[axis];
+        (((c - centroids.min[axis]) * scale) as usize).min(BINS - 1)
+    };
+    let (mut best_cost, mut best_bin, mut best_axis) = (f64::INFINITY, 0, 0);
+    for axis in (0..3).filter(|&a| extent[a] > 0.0) {
+        let mut bin_bounds = [Aabb::EMPTY; BINS];
+        let mut bin_counts = [0usize; BINS];
+        for item in items.iter() {
+            let b = bin_of(axis, item.centroid[axis]);
+            bin_counts[b] += 1;
+            bin_bounds[b] = bin_bounds[b].union(&item.bounds);
         }
-        let cost = acc.surface_area() * count as f64 + right_area[b] * right_count[b] as f64;
-        if cost < best_cost {
-            best_cost = cost;
-            best_bin = b;
+        // Sweep from the right to get the cost of each right side.
+        let mut right_area = [0.0; BINS];
+        let mut right_count = [0usize; BINS];
+        let (mut acc, mut count) = (Aabb::EMPTY, 0);
+        for b in (1..BINS).rev() {
+            acc = acc.union(&bin_bounds[b]);
+            count += bin_counts[b];
+            right_area[b] = acc.surface_area();
+            right_count[b] = count;
+        }
+        let (mut acc, mut count) = (Aabb::EMPTY, 0);
+        for b in 1..BINS {
+            acc = acc.union(&bin_bounds[b - 1]);
+            count += bin_counts[b - 1];
+            if count == 0 || right_count[b] == 0 {
+                continue;
+            }
+            let cost = acc.surface_area() * count as f64 + right_area[b] * right_count[b] as f64;
+            if cost < best_cost {
+                (best_cost, best_bin, best_axis) = (cost, b, axis);
+            }
         }
     }
     let n = items.len();
@@ -328,12 +362,12 @@ fn sah_split(items: &mut [BuildItem], centroids: &Aabb, axis: usize, area: f64) 
     // Partition: items in bins below best_bin first.
     let mut mid = 0;
     for i in 0..n {
-        if bin_of(items[i].centroid[axis]) < best_bin {
+        if bin_of(best_axis, items[i].centroid[best_axis]) < best_bin {
             items.swap(i, mid);
             mid += 1;
         }
     }
-    Some(mid)
+    Some((mid, best_axis))
 }
 
 #[cfg(test)]
@@ -386,13 +420,13 @@ mod tests {
             for (i, node) in bvh.nodes.iter().enumerate() {
                 if node.count == 0 {
                     for child in [i + 1, node.offset as usize] {
-                        let c = bvh.nodes[child].bounds;
-                        assert!(node.bounds.union(&c) == node.bounds);
+                        let c = bvh.nodes[child].bounds();
+                        assert!(node.bounds().union(&c) == node.bounds());
                     }
                 } else {
                     for p in node.offset as usize..(node.offset + node.count as u32) as usize {
                         let b = boxes[bvh.order()[p] as usize];
-                        assert!(node.bounds.union(&b) == node.bounds);
+                        assert!(node.bounds().union(&b) == node.bounds());
                     }
                 }
             }

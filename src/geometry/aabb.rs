@@ -31,6 +31,13 @@ impl Aabb {
     }
 }
 
+impl Default for Aabb {
+    /// The empty box.
+    fn default() -> Self {
+        Aabb::EMPTY
+    }
+}
+
 impl Aabb {
     /// The empty box (union identity).
     pub const EMPTY: Aabb = Aabb {
