@@ -194,7 +194,7 @@ fn unknown_model_format_and_missing_file_are_refused() {
         dir.path(),
         "x.stl",
         b"solid",
-        &["x.stl", "expected a .obj or .ply"],
+        &["x.stl", "expected a .obj, .ply, .gltf or .glb file"],
     );
     let err = scene_with(dir.path(), "file = \"missing.obj\"").unwrap_err();
     assert!(
@@ -204,4 +204,86 @@ fn unknown_model_format_and_missing_file_are_refused() {
     // `file` only applies to meshes; meshes need one.
     let err = scene_with(dir.path(), "").unwrap_err();
     assert!(err.contains("a mesh needs `file`"), "{err}");
+}
+
+#[test]
+fn gltf_brings_meshes_node_transforms_camera_and_lights() {
+    let s = Scene::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/gltf.toml")).unwrap();
+    // The scene has no [camera]: the file's, at its node's translation.
+    assert!(
+        (s.camera.position - glam::DVec3::new(0.0, 1.6 + 0.002, 4.2)).length() < 1e-6,
+        "{}",
+        s.camera.position
+    );
+    assert_eq!(s.lights.len(), 1, "KHR_lights_punctual point light");
+    let Shape::Mesh(m) = &s.aggregate.primitives()[1].shape else {
+        panic!("mesh")
+    };
+    assert_eq!(m.mesh.triangle_count(), 12);
+    // The second pyramid is scaled ×1.4 in y by its node: 1.4 tall.
+    let b = m.bounds();
+    assert!((b.max.y - (1.4 + 0.002)).abs() < 1e-6, "{b:?}");
+    // Its glass material: transmission and ior.
+    assert!(
+        s.materials
+            .iter()
+            .any(|mat| mat.kt > 0.8 && (mat.ior - 1.5).abs() < 1e-9)
+    );
+}
+
+/// The example glTF's JSON, for the edits the tests below make to it.
+fn pyramid_gltf_json() -> String {
+    std::fs::read_to_string(models_dir().join("pyramids.gltf")).unwrap()
+}
+
+#[test]
+fn gltf_with_an_unsupported_required_extension_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        models_dir().join("pyramid.bin"),
+        dir.path().join("pyramid.bin"),
+    )
+    .unwrap();
+    let json = pyramid_gltf_json().replacen(
+        "\"extensionsUsed\"",
+        "\"extensionsRequired\": [\"KHR_draco_mesh_compression\"],\n \"extensionsUsed\"",
+        1,
+    );
+    expect_error(
+        dir.path(),
+        "draco.gltf",
+        json.as_bytes(),
+        &[
+            "draco.gltf",
+            "KHR_draco_mesh_compression",
+            "Unsupported extension",
+        ],
+    );
+}
+
+#[test]
+fn glb_binary_container_loads() {
+    let dir = tempfile::tempdir().unwrap();
+    let bin = std::fs::read(models_dir().join("pyramid.bin")).unwrap();
+    let mut json = pyramid_gltf_json().replace("\"uri\": \"pyramid.bin\",", "");
+    while json.len() % 4 != 0 {
+        json.push(' ');
+    }
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut glb = Vec::new();
+    glb.extend(b"glTF");
+    glb.extend(2u32.to_le_bytes());
+    glb.extend((total as u32).to_le_bytes());
+    glb.extend((json.len() as u32).to_le_bytes());
+    glb.extend(b"JSON");
+    glb.extend(json.as_bytes());
+    glb.extend((bin.len() as u32).to_le_bytes());
+    glb.extend(b"BIN\0");
+    glb.extend(&bin);
+    std::fs::write(dir.path().join("p.glb"), glb).unwrap();
+    let s = scene_with(dir.path(), "file = \"p.glb\"").unwrap();
+    let Shape::Mesh(m) = &s.aggregate.primitives()[0].shape else {
+        panic!("mesh")
+    };
+    assert_eq!(m.mesh.triangle_count(), 12);
 }

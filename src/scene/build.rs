@@ -12,7 +12,17 @@ use toml::Spanned;
 use super::Scene;
 use super::error::Diagnostics;
 use super::format::*;
-use super::models::load_model;
+use super::models::{ModelCamera, load_model};
+
+/// A model file, read and built once however often it is placed.
+#[derive(Clone)]
+struct LoadedModel {
+    mesh: Arc<Mesh>,
+    /// Scene material index per material slot of the mesh.
+    slots: Arc<[u32]>,
+    lights: Vec<Light>,
+    camera: Option<ModelCamera>,
+}
 use crate::accel::{Aggregate, Primitive, Shape};
 use crate::camera::{Camera, FovAxis, Projection};
 use crate::geometry::{Ellipsoid, Mesh, MeshInstance, Plane, Polygon, Sphere};
@@ -28,6 +38,8 @@ pub fn build(file: SceneFile, base_dir: &Path, diags: &mut Diagnostics) -> Optio
         base_dir: base_dir.to_path_buf(),
         materials: Vec::new(),
         models: BTreeMap::new(),
+        model_lights: Vec::new(),
+        model_camera: None,
         default_material: None,
         warnings: Vec::new(),
     };
@@ -44,15 +56,8 @@ pub fn build(file: SceneFile, base_dir: &Path, diags: &mut Diagnostics) -> Optio
         .map_or(DVec3::splat(0.1), |v| c.color(v, "ambient"));
     let camera = match &file.camera {
         Some(desc) => c.camera(desc),
-        // A [camera] that failed to parse is already reported.
-        None if file.unparsed.contains("camera") => None,
-        None => {
-            c.diags.error(
-                0..0,
-                "missing [camera] section (position and look_at are required)",
-            );
-            None
-        }
+        // Missing: a model file may bring one (checked below).
+        None => None,
     };
     let mut material_index = BTreeMap::new();
     for (name, desc) in &file.materials {
@@ -60,7 +65,7 @@ pub fn build(file: SceneFile, base_dir: &Path, diags: &mut Diagnostics) -> Optio
         let m = c.material(name, desc);
         c.materials.push(m);
     }
-    let lights = file
+    let lights: Vec<Light> = file
         .lights
         .iter()
         .filter_map(|(name, d)| c.light(name, d))
@@ -71,6 +76,16 @@ pub fn build(file: SceneFile, base_dir: &Path, diags: &mut Diagnostics) -> Optio
         .enumerate()
         .filter_map(|(i, o)| c.object(i, o, &material_index, &file.unparsed))
         .collect();
+    let camera = camera.or(c.model_camera);
+    // A [camera] that failed to parse is already reported.
+    if camera.is_none() && file.camera.is_none() && !file.unparsed.contains("camera") {
+        c.diags.error(
+            0..0,
+            "missing [camera] section (position and look_at are required), and no model file brings a camera",
+        );
+    }
+    let mut lights: Vec<Light> = lights;
+    lights.append(&mut c.model_lights);
     if !c.diags.is_empty() {
         return None;
     }
@@ -94,7 +109,11 @@ struct Check<'d, 's> {
     /// The scene's materials: the file's, then those models bring.
     materials: Vec<Material>,
     /// Models loaded so far, by path: placing a model again shares its mesh.
-    models: BTreeMap<PathBuf, (Arc<Mesh>, Arc<[u32]>)>,
+    models: BTreeMap<PathBuf, LoadedModel>,
+    /// Lights that models brought, placed in the world.
+    model_lights: Vec<Light>,
+    /// The first camera a model brought, placed in the world.
+    model_camera: Option<Camera>,
     /// Index of the grey material for models that bring none.
     default_material: Option<u32>,
     warnings: Vec<String>,
@@ -443,7 +462,9 @@ impl Check<'_, '_> {
                 };
                 let has_transform = d.transform.as_ref().is_some_and(|t| !t.is_empty());
                 let transform = transform?;
-                let (mesh, slots) = self.model(file, &label)?;
+                let loaded = self.model(file, &label)?;
+                self.place_model_extras(&loaded, Some(&transform).filter(|_| has_transform));
+                let (mesh, slots) = (loaded.mesh, loaded.slots);
                 let materials: Arc<[u32]> = match (&d.material, material) {
                     (Some(_), Some(m)) => Arc::new([m]),
                     (Some(_), None) => return None,
@@ -581,7 +602,7 @@ impl Check<'_, '_> {
 
     /// The mesh and material slots of the model `file`, loaded once however
     /// often it is placed.
-    fn model(&mut self, file: &Spanned<String>, label: &str) -> Option<(Arc<Mesh>, Arc<[u32]>)> {
+    fn model(&mut self, file: &Spanned<String>, label: &str) -> Option<LoadedModel> {
         let path = self.base_dir.join(file.get_ref());
         let key = path.canonicalize().unwrap_or_else(|_| path.clone());
         if let Some(found) = self.models.get(&key) {
@@ -613,8 +634,58 @@ impl Check<'_, '_> {
             (first..self.materials.len() as u32).collect()
         };
         self.warnings.extend(model.warnings);
-        self.models.insert(key, (mesh.clone(), slots.clone()));
-        Some((mesh, slots))
+        let loaded = LoadedModel {
+            mesh,
+            slots,
+            lights: model.lights,
+            camera: model.camera,
+        };
+        self.models.insert(key, loaded.clone());
+        Some(loaded)
+    }
+
+    /// Puts the lights and camera a model brought into the world, through
+    /// the placement's transform.
+    fn place_model_extras(&mut self, model: &LoadedModel, transform: Option<&Transform>) {
+        let point = |p: DVec3| transform.map_or(p, |t| t.point(p));
+        let vector = |v: DVec3| {
+            transform
+                .map_or(v, |t| t.to_world.transform_vector3(v))
+                .normalize_or_zero()
+        };
+        for light in &model.lights {
+            let mut light = *light;
+            light.shape = match light.shape {
+                LightShape::Point { position } => LightShape::Point {
+                    position: point(position),
+                },
+                LightShape::Directional { direction } => LightShape::Directional {
+                    direction: vector(direction),
+                },
+                LightShape::Sphere {
+                    center,
+                    radius,
+                    samples,
+                } => LightShape::Sphere {
+                    center: point(center),
+                    radius,
+                    samples,
+                },
+            };
+            self.model_lights.push(light);
+        }
+        if let (None, Some(cam)) = (&self.model_camera, &model.camera) {
+            let position = point(cam.position);
+            self.model_camera = Camera::look_at(
+                position,
+                position + vector(cam.forward),
+                vector(cam.up),
+                Projection::Perspective {
+                    fov: cam.yfov,
+                    axis: FovAxis::Vertical,
+                },
+            );
+        }
     }
 
     /// The steps composed in order: the first step acts on the object first.

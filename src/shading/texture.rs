@@ -46,6 +46,34 @@ impl ImageTexture {
         })
     }
 
+    /// A texture from 8-bit sRGB pixels with `channels` bytes each (the
+    /// first three are RGB), row-major from the top.
+    pub fn from_srgb8(width: usize, height: usize, pixels: &[u8], channels: usize) -> Self {
+        let decode = |c: u8| {
+            let c = f64::from(c) / 255.0;
+            if c <= 0.04045 {
+                c / 12.92
+            } else {
+                ((c + 0.055) / 1.055).powf(2.4)
+            }
+        };
+        let texels = pixels
+            .chunks_exact(channels)
+            .take(width * height)
+            .map(|p| DVec3::new(decode(p[0]), decode(p[1]), decode(p[2])))
+            .collect::<Vec<_>>();
+        let texels = if texels.len() == width * height {
+            texels
+        } else {
+            vec![DVec3::ONE; width * height]
+        };
+        ImageTexture {
+            width,
+            height,
+            texels,
+        }
+    }
+
     /// A texture from linear texels, row-major from the top.
     pub fn from_texels(width: usize, height: usize, texels: Vec<DVec3>) -> Self {
         assert_eq!(texels.len(), width * height);

@@ -2,13 +2,17 @@
 //! and glTF 2.0 (gltf). Errors name the file and, where the format has
 //! them, the line or element.
 
+mod gltf;
 mod obj;
 mod ply;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+use glam::DVec3;
+
 use crate::geometry::MeshData;
+use crate::lights::Light;
 use crate::shading::Material;
 
 /// A model file, read: one mesh and the materials its triangles use.
@@ -20,6 +24,23 @@ pub struct Model {
     pub materials: Vec<Material>,
     /// Things read but not used, for the user to know.
     pub warnings: Vec<String>,
+    /// Lights the file brings (glTF), in model space.
+    pub lights: Vec<Light>,
+    /// The file's camera (glTF), in model space.
+    pub camera: Option<ModelCamera>,
+}
+
+/// A perspective camera found in a model file.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ModelCamera {
+    /// Eye position.
+    pub position: DVec3,
+    /// Unit viewing direction.
+    pub forward: DVec3,
+    /// Unit up direction.
+    pub up: DVec3,
+    /// Vertical field of view in radians.
+    pub yfov: f64,
 }
 
 /// Why a model file could not be used.
@@ -61,10 +82,11 @@ pub fn load_model(path: &Path) -> Result<Model, ModelError> {
     match ext.as_deref() {
         Some("obj") => obj::load(path),
         Some("ply") => ply::load(path),
+        Some("gltf" | "glb") => gltf::load(path),
         _ => Err(ModelError::new(
             path,
             None,
-            "unknown model format; expected a .obj or .ply file",
+            "unknown model format; expected a .obj, .ply, .gltf or .glb file",
         )),
     }
 }

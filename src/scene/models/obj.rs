@@ -105,6 +105,8 @@ pub fn load(path: &Path) -> Result<Model, ModelError> {
         mesh,
         materials,
         warnings,
+        lights: Vec::new(),
+        camera: None,
     })
 }
 

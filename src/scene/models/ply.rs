@@ -181,5 +181,7 @@ pub fn load(path: &Path) -> Result<Model, ModelError> {
         mesh,
         materials: Vec::new(),
         warnings,
+        lights: Vec::new(),
+        camera: None,
     })
 }
