@@ -266,7 +266,7 @@ fn glb_binary_container_loads() {
     let dir = tempfile::tempdir().unwrap();
     let bin = std::fs::read(models_dir().join("pyramid.bin")).unwrap();
     let mut json = pyramid_gltf_json().replace("\"uri\": \"pyramid.bin\",", "");
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(' ');
     }
     let total = 12 + 8 + json.len() + 8 + bin.len();
