@@ -287,3 +287,51 @@ fn glb_binary_container_loads() {
     };
     assert_eq!(m.mesh.triangle_count(), 12);
 }
+
+#[test]
+fn scene_materials_take_image_textures_and_uv_checkers() {
+    let dir = tempfile::tempdir().unwrap();
+    let tile = models_dir().join("tile.png");
+    let toml = format!(
+        "[render]\nwidth = 64\nheight = 64\nspp = 1\nambient = [1, 1, 1]\n\
+         [camera]\ntype = \"orthographic\"\nposition = [0, 0, 10]\nlook_at = [0, 0, 0]\nview_height = 4\n\
+         [materials.image]\nka = 1\nkd = 0\ntexture = {:?}\n\
+         [materials.uv]\nka = 1\nkd = 0\ncolor = [1, 1, 1]\nchecker = {{ color = [0, 0, 0], size = 0.5, mapping = \"uv\" }}\n\
+         [[objects]]\ntype = \"plane\"\nmaterial = \"uv\"\nnormal = [0, 0, 1]\ndistance = -1\n\
+         [[objects]]\ntype = \"sphere\"\nmaterial = \"image\"\nradius = 1\n",
+        tile.to_str().unwrap()
+    );
+    std::fs::write(dir.path().join("scene.toml"), toml).unwrap();
+    let s = Scene::load(&dir.path().join("scene.toml")).unwrap();
+    let out = render(
+        &s,
+        &RenderSettings {
+            threads: Some(1),
+            ..s.settings
+        },
+        &(),
+    )
+    .unwrap();
+    // The plane behind: a uv checker of equal black and white areas.
+    let corner: Vec<f64> = (0..16)
+        .flat_map(|y| (0..16).map(move |x| (x, y)))
+        .map(|(x, y)| out.film.get(x, y).x)
+        .collect();
+    let white = corner.iter().filter(|&&v| v > 0.5).count();
+    assert!(white > 64 && white < 192, "{white} of 256 white");
+    // The sphere shows the tile image's blue and yellow.
+    let centre = out.film.get(32, 32);
+    assert!(
+        centre.max_element() > 0.0 && (centre.x - centre.z).abs() > 0.05,
+        "{centre}"
+    );
+    // A missing texture file is an error naming it.
+    std::fs::write(dir.path().join("bad.toml"), "[camera]\nposition = [0, 0, 1]\nlook_at = [0, 0, 0]\n[materials.m]\ntexture = \"nope.png\"\n").unwrap();
+    let err = Scene::load(&dir.path().join("bad.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("bad.toml:5:11") && err.contains("nope.png"),
+        "{err}"
+    );
+}

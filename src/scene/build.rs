@@ -29,6 +29,7 @@ use crate::geometry::{Ellipsoid, Mesh, MeshInstance, Plane, Polygon, Sphere};
 use crate::lights::{Light, LightShape};
 use crate::math::Transform;
 use crate::render::{RenderSettings, limits};
+use crate::shading::texture::ImageTexture;
 use crate::shading::{Fresnel, Highlight, Material, Texture};
 
 /// Builds the runtime scene; `None` if any problem was recorded.
@@ -285,13 +286,48 @@ impl Check<'_, '_> {
             .color
             .as_ref()
             .map_or(DVec3::ONE, |c| self.color(c, "color"));
-        let texture = match &d.checker {
-            None => Texture::Solid(color),
-            Some(ch) => Texture::Checker {
-                even: color,
-                odd: self.color(&ch.get_ref().color, "checker.color"),
-                size: self.number(&ch.get_ref().size, 1.0, "checker.size", POSITIVE),
-            },
+        let texture = match (&d.checker, &d.texture) {
+            (Some(_), Some(file)) => {
+                self.error(
+                    file.span(),
+                    format!("material `{name}`: give `checker` or `texture`, not both"),
+                );
+                Texture::Solid(color)
+            }
+            (None, None) => Texture::Solid(color),
+            (Some(ch), None) => {
+                let ch = ch.get_ref();
+                let odd = self.color(&ch.color, "checker.color");
+                let size = self.number(&ch.size, 1.0, "checker.size", POSITIVE);
+                match ch.mapping {
+                    Some(CheckerMapping::Uv) => Texture::UvChecker {
+                        even: color,
+                        odd,
+                        size,
+                    },
+                    _ => Texture::Checker {
+                        even: color,
+                        odd,
+                        size,
+                    },
+                }
+            }
+            (None, Some(file)) => {
+                let path = self.base_dir.join(file.get_ref());
+                match ImageTexture::load(&path) {
+                    Ok(image) => Texture::Image {
+                        image: Arc::new(image),
+                        tint: color,
+                    },
+                    Err(e) => {
+                        self.error(
+                            file.span(),
+                            format!("material `{name}`: texture {}: {e}", path.display()),
+                        );
+                        Texture::Solid(color)
+                    }
+                }
+            }
         };
         let kr = self.number(&d.kr, 0.0, "kr", NON_NEGATIVE);
         let kt = self.number(&d.kt, 0.0, "kt", NON_NEGATIVE);

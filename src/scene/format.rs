@@ -125,8 +125,21 @@ pub enum HighlightDesc {
 pub struct CheckerDesc {
     /// Colour of the odd cells (the material's `color` fills the even ones).
     pub color: Triple,
-    /// Cell side in world units.
+    /// Cell side in world units (or texture-coordinate units with `uv`).
     pub size: Option<Number>,
+    /// `"world"` (a solid checkerboard in space, the default) or `"uv"`
+    /// (squares in texture coordinates).
+    pub mapping: Option<CheckerMapping>,
+}
+
+/// Where a checkerboard lives.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum CheckerMapping {
+    /// Cubes in world space.
+    World,
+    /// Squares in texture coordinates.
+    Uv,
 }
 
 /// `[materials.NAME]`.
@@ -137,6 +150,9 @@ pub struct MaterialDesc {
     pub color: Option<Triple>,
     /// Checkerboard texture.
     pub checker: Option<Spanned<CheckerDesc>>,
+    /// Image texture file for the colour (by texture coordinates),
+    /// relative to the scene file.
+    pub texture: Option<Spanned<String>>,
     /// Ambient coefficient.
     pub ka: Option<Number>,
     /// Diffuse coefficient.

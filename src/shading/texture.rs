@@ -116,6 +116,15 @@ pub enum Texture {
         /// Cell side.
         size: f64,
     },
+    /// A checkerboard of squares of side `size` in texture coordinates.
+    UvChecker {
+        /// Colour of the even squares.
+        even: DVec3,
+        /// Colour of the odd squares.
+        odd: DVec3,
+        /// Square side in texture-coordinate units.
+        size: f64,
+    },
     /// An image by texture coordinates (bilinear), times a tint.
     Image {
         /// The image.
@@ -139,6 +148,14 @@ impl Texture {
                 let p = (point - normal * (1e-6 * size)) / size;
                 let parity = p.x.floor() + p.y.floor() + p.z.floor();
                 if parity.rem_euclid(2.0) == 0.0 {
+                    even
+                } else {
+                    odd
+                }
+            }
+            Texture::UvChecker { even, odd, size } => {
+                let cell = (uv / size).floor();
+                if (cell.x + cell.y).rem_euclid(2.0) == 0.0 {
                     even
                 } else {
                     odd
