@@ -1,16 +1,19 @@
 #!/usr/bin/env python3
-"""Prism against POV-Ray on equivalent scenes, measured in the same run.
+"""Prism against POV-Ray 3.7 on the same scenes, measured in the same run.
 
-Absolute times on a shared machine drift, so what this prints that matters
-is the ratio: POV-Ray's wall time over Prism's for the same picture (same
-resolution, one sample per pixel, same thread count, same trace depth).
-Each command runs `--repeat` times, alternating, and the median is kept.
-POV-Ray spends a fixed time starting up (reading its include files); that
-is measured on a 1x1 render of the same scene and shown, and the second
-ratio compares Prism's whole run against POV-Ray's time past start-up.
+Scenes (both versions kept in bench/): the Whitted picture with a 16-sample
+area light (bench/whitted.toml, bench/whitted.pov) and the soft-shadow study
+(scenes/soft-shadows.toml, bench/soft-shadows.pov). Same resolution, trace
+depth, thread count and light samples; antialiasing: Prism 4 stratified
+samples per pixel, POV-Ray +A0.0 +AM1 +R2 (every pixel supersampled on a
+2×2 grid). What counts is the ratio, POV-Ray's wall time over Prism's;
+absolute times on a shared machine drift. POV-Ray spends a fixed time
+starting up, measured on a 1×1 render of the same scene; the last column
+compares Prism's whole run with POV-Ray's time past start-up.
 
 Set-up: bench/setup.sh (installs POV-Ray from Debian).
 Usage:  python3 bench/run.py [--repeat N] [--threads T]
+Pictures: bench/out/NAME-prism.png and bench/out/NAME-povray.png.
 """
 
 import argparse
@@ -19,15 +22,15 @@ import shutil
 import statistics
 import subprocess
 import sys
-import tempfile
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+OUT = os.path.join(ROOT, "bench", "out")
 
 # (name, Prism scene, POV-Ray twin, width, height)
 CASES = [
-    ("whitted", "scenes/whitted.toml", "bench/povray/whitted.pov", 640, 480),
-    ("soft-shadows", "scenes/soft-shadows.toml", "bench/povray/soft-shadows.pov", 720, 300),
+    ("whitted", "bench/whitted.toml", "bench/whitted.pov", 640, 480),
+    ("soft-shadows", "scenes/soft-shadows.toml", "bench/soft-shadows.pov", 720, 300),
 ]
 
 
@@ -46,15 +49,19 @@ def main():
         sys.exit("povray not found: run bench/setup.sh first")
     subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
     prism = os.path.join(ROOT, "target", "release", "prism")
-    out = tempfile.mkdtemp(prefix="prism-bench-")
+    os.makedirs(OUT, exist_ok=True)
     print(f"{'scene':<14} {'size':>9} {'prism s':>9} {'povray s':>9} {'pov start':>9} {'povray/prism':>13} {'(past start)':>13}")
+    pictures = []
     for name, scene, pov, w, h in CASES:
-        prism_cmd = [prism, "render", os.path.join(ROOT, scene), "-o", os.path.join(out, name + ".png"),
-                     "--width", str(w), "--height", str(h), "--spp", "1", "--max-depth", "8",
+        prism_png = os.path.join(OUT, f"{name}-prism.png")
+        pov_png = os.path.join(OUT, f"{name}-povray.png")
+        prism_cmd = [prism, "render", os.path.join(ROOT, scene), "-o", prism_png,
+                     "--width", str(w), "--height", str(h), "--spp", "4", "--max-depth", "8",
                      "--threads", str(args.threads), "--quiet"]
-        pov_cmd = ["povray", "+I" + os.path.join(ROOT, pov), "+O" + os.path.join(out, name + "-pov.png"),
-                   f"+W{w}", f"+H{h}", "-A", f"+WT{args.threads}", "-D", "-V", "-GA", "+FN"]
-        pov_start_cmd = [c for c in pov_cmd if not c.startswith(("+W", "+H"))] + ["+W1", "+H1"]
+        pov_common = ["povray", "+I" + os.path.join(ROOT, pov), "+A0.0", "+AM1", "+R2",
+                      f"+WT{args.threads}", "-D", "-V", "-GA", "+FN"]
+        pov_cmd = pov_common + ["+O" + pov_png, f"+W{w}", f"+H{h}"]
+        pov_start_cmd = pov_common + ["+O" + os.path.join(OUT, "start.png"), "+W1", "+H1"]
         prism_times, pov_times, start_times = [], [], []
         for _ in range(args.repeat):
             prism_times.append(wall_time(prism_cmd))
@@ -62,7 +69,9 @@ def main():
             start_times.append(wall_time(pov_start_cmd))
         p, q, s = (statistics.median(t) for t in (prism_times, pov_times, start_times))
         print(f"{name:<14} {w:>4}x{h:<4} {p:>9.3f} {q:>9.3f} {s:>9.3f} {q / p:>12.2f}x {(q - s) / p:>12.2f}x")
-    shutil.rmtree(out)
+        pictures += [prism_png, pov_png]
+    os.remove(os.path.join(OUT, "start.png"))
+    print("pictures:", *pictures, sep="\n  ")
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-// POV-Ray twin of scenes/whitted.toml for bench/run.py: same camera, objects,
+// POV-Ray twin of bench/whitted.toml for bench/run.py: same camera, objects,
 // materials and light. POV-Ray is left-handed, so z is negated.
 #version 3.7;
 global_settings { assumed_gamma 1.0 max_trace_level 8 adc_bailout 0.001 ambient_light rgb <0.15, 0.15, 0.15> }
@@ -10,7 +10,11 @@ camera {
   right x*4/3
   angle 51.8  // horizontal: our 40° vertical at 4:3
 }
-light_source { <4, 9, -7> color rgb 1 }
+light_source {
+  <4, 9, -7> color rgb 1
+  // The sphere light of radius 0.5 with 16 samples: a 4×4 circular area light.
+  area_light <1, 0, 0>, <0, 0, 1>, 4, 4 circular orient
+}
 
 polygon {
   4, <-5, 0, -4>, <5, 0, -4>, <5, 0, 12>, <-5, 0, 12>
