@@ -77,7 +77,6 @@ pub struct Bvh {
 pub struct BoxRay {
     origin: Vec3A,
     inv_dir: Vec3A,
-    negative: [bool; 3],
 }
 
 impl BoxRay {
@@ -95,7 +94,6 @@ impl BoxRay {
         BoxRay {
             origin: origin.as_vec3().into(),
             inv_dir: inv_dir.as_vec3().into(),
-            negative: [inv_dir.x < 0.0, inv_dir.y < 0.0, inv_dir.z < 0.0],
         }
     }
 
@@ -104,11 +102,18 @@ impl BoxRay {
     /// primitive inside it is hit in (Ize 2013).
     #[inline]
     fn hits(&self, node: &BvhNode, t_max: f64) -> bool {
+        self.entry(node, t_max as f32).is_some()
+    }
+
+    /// The distance at which the ray enters the node's box, if it does so
+    /// before `t_max`.
+    #[inline]
+    fn entry(&self, node: &BvhNode, t_max: f32) -> Option<f32> {
         let t0 = (Vec3A::from_array(node.min) - self.origin) * self.inv_dir;
         let t1 = (Vec3A::from_array(node.max) - self.origin) * self.inv_dir;
         let near = t0.min(t1).max_element().max(0.0);
         let far = t0.max(t1).min_element() * (1.0 + 8.0 * f32::EPSILON);
-        near <= far.min(t_max as f32)
+        (near <= far.min(t_max)).then_some(near)
     }
 }
 
@@ -160,6 +165,10 @@ impl Bvh {
     /// `test(position, t_max)` for every item position in them (an index
     /// into [`order`](Self::order)); `test` returns the distance of a
     /// closer hit, which then shrinks `t_max`. Returns the final `t_max`.
+    ///
+    /// Both children's boxes are tested at their parent; the nearer is
+    /// visited first and the farther is pushed with its entry distance, so
+    /// it is skipped without another box test once a closer hit is known.
     #[inline]
     pub fn closest(
         &self,
@@ -167,69 +176,105 @@ impl Bvh {
         mut t_max: f64,
         mut test: impl FnMut(usize, f64) -> Option<f64>,
     ) -> f64 {
-        if self.nodes.is_empty() {
+        let Some(root) = self.nodes.first() else {
+            return t_max;
+        };
+        if !ray.hits(root, t_max) {
             return t_max;
         }
-        let mut stack = [0u32; STACK];
+        let mut stack = [(0u32, 0f32); STACK];
         let mut top = 0;
         let mut current = 0usize;
         loop {
             let node = &self.nodes[current];
-            if ray.hits(node, t_max) {
-                if node.count > 0 {
-                    let start = node.offset as usize;
-                    for position in start..start + node.count as usize {
-                        if let Some(t) = test(position, t_max) {
-                            t_max = t;
+            if node.count > 0 {
+                let start = node.offset as usize;
+                for position in start..start + node.count as usize {
+                    if let Some(t) = test(position, t_max) {
+                        t_max = t;
+                    }
+                }
+            } else {
+                let (left, right) = (current + 1, node.offset as usize);
+                let limit = t_max as f32;
+                match (
+                    ray.entry(&self.nodes[left], limit),
+                    ray.entry(&self.nodes[right], limit),
+                ) {
+                    (Some(a), Some(b)) => {
+                        let (near, far, far_t) = if a <= b {
+                            (left, right, b)
+                        } else {
+                            (right, left, a)
+                        };
+                        if top < STACK {
+                            stack[top] = (far as u32, far_t);
+                            top += 1;
                         }
+                        current = near;
+                        continue;
                     }
-                } else {
-                    // Visit the child on the ray's near side first.
-                    let (first, second) = if ray.negative[node.axis as usize] {
-                        (node.offset as usize, current + 1)
-                    } else {
-                        (current + 1, node.offset as usize)
-                    };
-                    if top < STACK {
-                        stack[top] = second as u32;
-                        top += 1;
+                    (Some(_), None) => {
+                        current = left;
+                        continue;
                     }
-                    current = first;
-                    continue;
+                    (None, Some(_)) => {
+                        current = right;
+                        continue;
+                    }
+                    (None, None) => {}
                 }
             }
-            if top == 0 {
-                return t_max;
+            // Next pushed node that may still hold a closer hit.
+            loop {
+                if top == 0 {
+                    return t_max;
+                }
+                top -= 1;
+                let (node, entry) = stack[top];
+                if f64::from(entry) <= t_max {
+                    current = node as usize;
+                    break;
+                }
             }
-            top -= 1;
-            current = stack[top] as usize;
         }
     }
 
     /// Any-hit traversal: true as soon as `test(position)` is true for an
-    /// item in a leaf the ray meets within `t_max`.
+    /// item in a leaf the ray meets within `t_max`. Children are tested at
+    /// their parent, so a missed child is never pushed.
     #[inline]
     pub fn any(&self, ray: &BoxRay, t_max: f64, mut test: impl FnMut(usize) -> bool) -> bool {
-        if self.nodes.is_empty() {
+        let Some(root) = self.nodes.first() else {
+            return false;
+        };
+        if !ray.hits(root, t_max) {
             return false;
         }
+        let limit = t_max as f32;
         let mut stack = [0u32; STACK];
         let mut top = 0;
         let mut current = 0usize;
         loop {
             let node = &self.nodes[current];
-            if ray.hits(node, t_max) {
-                if node.count > 0 {
-                    let start = node.offset as usize;
-                    if (start..start + node.count as usize).any(&mut test) {
-                        return true;
-                    }
-                } else {
+            if node.count > 0 {
+                let start = node.offset as usize;
+                if (start..start + node.count as usize).any(&mut test) {
+                    return true;
+                }
+            } else {
+                let (left, right) = (current + 1, node.offset as usize);
+                let hit_left = ray.entry(&self.nodes[left], limit).is_some();
+                let hit_right = ray.entry(&self.nodes[right], limit).is_some();
+                if hit_left && hit_right {
                     if top < STACK {
-                        stack[top] = node.offset;
+                        stack[top] = right as u32;
                         top += 1;
                     }
-                    current += 1;
+                    current = left;
+                    continue;
+                } else if hit_left || hit_right {
+                    current = if hit_left { left } else { right };
                     continue;
                 }
             }
