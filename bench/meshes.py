@@ -8,7 +8,9 @@ For each: Prism (examples/meshbench.rs) loads, builds and times (a) primary
 camera rays 1024x1024, (b) incoherent rays, (c) shadow any-hit rays, single
 threaded and on all threads; then Embree builds and traces the very same
 rays (embreex traces on one thread, so the single-threaded ratio is the
-like-for-like one). Prints one table with Prism/Embree ratios.
+like-for-like one). Prints one table with Prism/Embree ratios, and the
+obvhs crate's compressed wide BVH on the same rays (one thread), the
+candidate replacement for Prism's own BVH.
 
 Set-up: bench/setup.sh. Usage: bench/.venv/bin/python bench/meshes.py [--incoherent N]
 """
@@ -107,6 +109,9 @@ def main():
         scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))  # commit: build the BVH
         embree_build = time.perf_counter() - start
         rows.append((name, "triangles", prism["triangles"], None, None, None))
+        ob = prism["obvhs"]
+        rows.append((name, "obvhs CWBVH8 build s / primary / shadow", ob["build_s"], ob["primary_mrays_1"],
+                     ob["shadow_mrays_1"], None))
         rows.append((name, "build s (Prism load+build / Embree)", prism["load_s"] + prism["build_s"], None, embree_build, None))
         rows.append((name, "Prism mesh MB / peak RSS MB", prism["mesh_mb"], prism["peak_rss_mb"], None, None))
         for kind in ("primary", "incoherent", "shadow"):

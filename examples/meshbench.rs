@@ -186,6 +186,8 @@ fn main() -> anyhow::Result<()> {
     let (s1, shadow_hits) = best_of_3(|| any_1(&shadow));
     let (sn, _) = best_of_3(|| any_n(&shadow));
 
+    let obvhs = obvhs_rates(&triangles_in, &primary, &shadow);
+
     primary.write(&out.join("primary.f32"))?;
     incoherent.write(&out.join("incoherent.f32"))?;
     shadow.write(&out.join("shadow.f32"))?;
@@ -204,7 +206,8 @@ fn main() -> anyhow::Result<()> {
          \"threads\": {}, \
          \"primary\": {{\"rays\": {}, \"hits\": {primary_hits}, \"mrays_1\": {}, \"mrays_n\": {}}}, \
          \"incoherent\": {{\"rays\": {}, \"hits\": {incoherent_hits}, \"mrays_1\": {}, \"mrays_n\": {}}}, \
-         \"shadow\": {{\"rays\": {}, \"hits\": {shadow_hits}, \"mrays_1\": {}, \"mrays_n\": {}}}}}",
+         \"shadow\": {{\"rays\": {}, \"hits\": {shadow_hits}, \"mrays_1\": {}, \"mrays_n\": {}}}, \
+         \"obvhs\": {{\"build_s\": {}, \"primary_mrays_1\": {}, \"shadow_mrays_1\": {}}}}}",
         mesh.triangle_count(),
         mesh.memory_bytes() as f64 / 1e6,
         peak_rss_mb(),
@@ -218,6 +221,65 @@ fn main() -> anyhow::Result<()> {
         shadow.origins.len(),
         rate(shadow.origins.len(), s1),
         rate(shadow.origins.len(), sn),
+        obvhs.0,
+        obvhs.1,
+        obvhs.2,
     );
     Ok(())
+}
+
+/// The same primary and shadow rays through obvhs's compressed wide BVH8
+/// (a candidate replacement for Prism's own BVH): build seconds, then
+/// single-threaded Mrays/s for primary (closest) and shadow (any) rays.
+fn obvhs_rates(mesh: &prism::geometry::MeshData, primary: &Rays, shadow: &Rays) -> (f64, f64, f64) {
+    use glam034::Vec3A;
+    use obvhs::ray::{Ray, RayHit};
+    let v = |p: DVec3| Vec3A::new(p.x as f32, p.y as f32, p.z as f32);
+    let tris: Vec<obvhs::triangle::Triangle> = mesh
+        .triangles
+        .iter()
+        .map(|t| obvhs::triangle::Triangle {
+            v0: v(mesh.positions[t[0] as usize]),
+            v1: v(mesh.positions[t[1] as usize]),
+            v2: v(mesh.positions[t[2] as usize]),
+        })
+        .collect();
+    let start = Instant::now();
+    let bvh = obvhs::cwbvh::builder::build_cwbvh_from_tris(
+        &tris,
+        obvhs::BvhBuildParams::medium_build(),
+        &mut std::time::Duration::default(),
+    );
+    let build_s = start.elapsed().as_secs_f64();
+    let (p, _) = best_of_3(|| {
+        (0..primary.origins.len())
+            .filter(|&i| {
+                let ray = Ray::new_inf(v(primary.origins[i]), v(primary.directions[i]));
+                let mut hit = RayHit::none();
+                bvh.ray_traverse(ray, &mut hit, |r, id| {
+                    tris[bvh.primitive_indices[id] as usize].intersect(r)
+                })
+            })
+            .count()
+    });
+    let (s, _) = best_of_3(|| {
+        (0..shadow.origins.len())
+            .filter(|&i| {
+                let ray = Ray::new(
+                    v(shadow.origins[i]),
+                    v(shadow.directions[i]),
+                    0.0,
+                    shadow.t_max[i] as f32,
+                );
+                !bvh.ray_traverse_miss(ray, |r, id| {
+                    tris[bvh.primitive_indices[id] as usize].intersect(r)
+                })
+            })
+            .count()
+    });
+    (
+        build_s,
+        primary.origins.len() as f64 / p / 1e6,
+        shadow.origins.len() as f64 / s / 1e6,
+    )
 }
