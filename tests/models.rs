@@ -335,3 +335,53 @@ fn scene_materials_take_image_textures_and_uv_checkers() {
         "{err}"
     );
 }
+
+#[test]
+fn smooth_shaded_icosphere_shades_like_the_true_sphere() {
+    // Interpolated vertex normals: away from the outline the faceted
+    // icosphere lit by a point light matches the analytic sphere closely.
+    let dir = tempfile::tempdir().unwrap();
+    let file = models_dir().join("icosphere.ply");
+    let scene = |object: &str| {
+        let toml = format!(
+            "[render]\nwidth = 80\nheight = 80\nspp = 1\nambient = [0, 0, 0]\n\
+             [camera]\ntype = \"orthographic\"\nposition = [0, 0, 10]\nlook_at = [0, 0, 0]\nview_height = 2.4\n\
+             [materials.white]\nka = 0\nkd = 1\n\
+             [lights.l]\ntype = \"directional\"\ndirection = [-1, -1, -2]\n\
+             [[objects]]\nmaterial = \"white\"\n{object}\n"
+        );
+        std::fs::write(dir.path().join("s.toml"), toml).unwrap();
+        let s = Scene::load(&dir.path().join("s.toml")).unwrap();
+        render(
+            &s,
+            &RenderSettings {
+                threads: Some(1),
+                ..s.settings
+            },
+            &(),
+        )
+        .unwrap()
+        .film
+    };
+    let mesh = scene(&format!(
+        "type = \"mesh\"\nfile = {:?}",
+        file.to_str().unwrap()
+    ));
+    let sphere = scene("type = \"sphere\"\nradius = 1");
+    let (mut total, mut count) = (0.0, 0);
+    for y in 0..80 {
+        for x in 0..80 {
+            let (u, v) = (
+                (x as f64 + 0.5) / 80.0 * 2.4 - 1.2,
+                (y as f64 + 0.5) / 80.0 * 2.4 - 1.2,
+            );
+            if u * u + v * v < 0.8 {
+                total += (mesh.get(x, y).x - sphere.get(x, y).x).abs();
+                count += 1;
+            }
+        }
+    }
+    let mean = total / count as f64;
+    assert!(sphere.get(40, 40).x > 0.3, "the sphere is lit");
+    assert!(mean < 0.01, "mean difference {mean}");
+}
