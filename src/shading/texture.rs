@@ -86,6 +86,9 @@ impl ImageTexture {
 
     /// Bilinear lookup, repeating outside [0, 1)²; v runs up the image.
     pub fn lookup(&self, uv: DVec2) -> DVec3 {
+        if self.texels.is_empty() {
+            return DVec3::ONE;
+        }
         let x = uv.x.rem_euclid(1.0) * self.width as f64 - 0.5;
         let y = (1.0 - uv.y.rem_euclid(1.0)) * self.height as f64 - 0.5;
         let (x0, y0) = (x.floor(), y.floor());
