@@ -17,6 +17,15 @@ fn scene_with(dir: &Path, object: &str) -> Result<Scene, String> {
     Scene::load(&dir.join("scene.toml")).map_err(|e| e.to_string())
 }
 
+/// Renders `scene` with its own settings on `threads` threads.
+fn render_film(scene: &Scene, threads: usize) -> prism::render::Film {
+    let settings = RenderSettings {
+        threads: Some(threads),
+        ..scene.settings
+    };
+    render(scene, &settings, &()).unwrap().film
+}
+
 fn models_dir() -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/models")
 }
@@ -26,16 +35,8 @@ fn binary_ply_icosphere_covers_nearly_pi_r_squared() {
     let dir = tempfile::tempdir().unwrap();
     let file = models_dir().join("icosphere.ply");
     let s = scene_with(dir.path(), &format!("file = {:?}", file.to_str().unwrap())).unwrap();
-    let out = render(
-        &s,
-        &RenderSettings {
-            threads: Some(2),
-            ..s.settings
-        },
-        &(),
-    )
-    .unwrap();
-    let lit = out.film.pixels().iter().filter(|p| p.x > 0.5).count() as f64;
+    let out = render_film(&s, 2);
+    let lit = out.pixels().iter().filter(|p| p.x > 0.5).count() as f64;
     let area = lit * (4.0f64 / 100.0).powi(2);
     // A 1280-triangle icosphere is a little smaller than its sphere (its
     // outline lies within 1% of the circle); pixels add a little noise.
@@ -173,16 +174,8 @@ fn ascii_ply_with_quads_loads() {
                -1 -1 0\n1 -1 0\n1 1 0\n-1 1 0\n4 0 1 2 3\n";
     std::fs::write(dir.path().join("quad.ply"), ply).unwrap();
     let s = scene_with(dir.path(), "file = \"quad.ply\"").unwrap();
-    let out = render(
-        &s,
-        &RenderSettings {
-            threads: Some(1),
-            ..s.settings
-        },
-        &(),
-    )
-    .unwrap();
-    let lit = out.film.pixels().iter().filter(|p| p.x > 0.5).count();
+    let out = render_film(&s, 1);
+    let lit = out.pixels().iter().filter(|p| p.x > 0.5).count();
     // A 2×2 square in a 4×4 view: a quarter of the pixels.
     assert_eq!(lit, 2500);
 }
@@ -303,24 +296,16 @@ fn scene_materials_take_image_textures_and_uv_checkers() {
     );
     std::fs::write(dir.path().join("scene.toml"), toml).unwrap();
     let s = Scene::load(&dir.path().join("scene.toml")).unwrap();
-    let out = render(
-        &s,
-        &RenderSettings {
-            threads: Some(1),
-            ..s.settings
-        },
-        &(),
-    )
-    .unwrap();
+    let out = render_film(&s, 1);
     // The plane behind: a uv checker of equal black and white areas.
     let corner: Vec<f64> = (0..16)
         .flat_map(|y| (0..16).map(move |x| (x, y)))
-        .map(|(x, y)| out.film.get(x, y).x)
+        .map(|(x, y)| out.get(x, y).x)
         .collect();
     let white = corner.iter().filter(|&&v| v > 0.5).count();
     assert!(white > 64 && white < 192, "{white} of 256 white");
     // The sphere shows the tile image's blue and yellow.
-    let centre = out.film.get(32, 32);
+    let centre = out.get(32, 32);
     assert!(
         centre.max_element() > 0.0 && (centre.x - centre.z).abs() > 0.05,
         "{centre}"
@@ -352,16 +337,7 @@ fn smooth_shaded_icosphere_shades_like_the_true_sphere() {
         );
         std::fs::write(dir.path().join("s.toml"), toml).unwrap();
         let s = Scene::load(&dir.path().join("s.toml")).unwrap();
-        render(
-            &s,
-            &RenderSettings {
-                threads: Some(1),
-                ..s.settings
-            },
-            &(),
-        )
-        .unwrap()
-        .film
+        render_film(&s, 1)
     };
     let mesh = scene(&format!(
         "type = \"mesh\"\nfile = {:?}",
