@@ -5,6 +5,7 @@
 
 use glam::{DVec3, Vec3A};
 
+use super::wide::{self, WideNode};
 use crate::geometry::Aabb;
 
 /// Items per leaf at most; fewer if the SAH says a split pays.
@@ -15,8 +16,6 @@ const BINS: usize = 16;
 const TRAVERSAL_COST: f64 = 0.5;
 /// Subtrees with more items than this are built on separate threads.
 const PARALLEL_THRESHOLD: usize = 16 * 1024;
-/// Traversal stack depth; SAH trees over f64 inputs stay far shallower.
-const STACK: usize = 96;
 
 /// One node of the flattened tree, 32 bytes: two nodes per cache line.
 /// Interior: children at `index + 1` and `offset`; leaf: items
@@ -53,6 +52,21 @@ impl BvhNode {
         }
     }
 
+    /// Leaf: first item position; interior: index of the second child.
+    pub(crate) fn offset(&self) -> u32 {
+        self.offset
+    }
+
+    /// Leaf: number of items; interior: 0.
+    pub(crate) fn count(&self) -> u16 {
+        self.count
+    }
+
+    /// The stored f32 box as (min, max).
+    pub(crate) fn raw_bounds(&self) -> ([f32; 3], [f32; 3]) {
+        (self.min, self.max)
+    }
+
     /// The stored (outward-rounded) box.
     pub fn bounds(&self) -> Aabb {
         Aabb {
@@ -65,7 +79,10 @@ impl BvhNode {
 /// A BVH over items numbered 0..n.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Bvh {
-    nodes: Vec<BvhNode>,
+    /// The binary tree as built, collapsed to 4-wide nodes.
+    wide: Vec<WideNode>,
+    /// Traversal stack entries the wide tree can need.
+    stack_need: usize,
     /// Exact bounds of everything.
     bounds: Aabb,
     /// Item numbers in leaf order.
@@ -84,36 +101,20 @@ impl BoxRay {
     #[inline]
     pub fn new(origin: DVec3, direction: DVec3) -> Self {
         // A zero component would give 0·∞ = NaN on a slab through the
-        // origin; a tiny value of the same sign gives the right answer.
-        let safe = |d: f64| if d == 0.0 { 1e-300f64.copysign(d) } else { d };
-        let inv_dir = DVec3::new(
-            1.0 / safe(direction.x),
-            1.0 / safe(direction.y),
-            1.0 / safe(direction.z),
-        );
+        // origin; a huge finite value of the same sign gives the right
+        // answer (0 at the slab, ±∞ beyond it) in f32.
+        let inv = |d: f64| {
+            let i = (1.0 / d) as f32;
+            if i.is_finite() {
+                i
+            } else {
+                1e30f32.copysign(d as f32)
+            }
+        };
         BoxRay {
             origin: origin.as_vec3().into(),
-            inv_dir: inv_dir.as_vec3().into(),
+            inv_dir: Vec3A::new(inv(direction.x), inv(direction.y), inv(direction.z)),
         }
-    }
-
-    /// Whether the ray meets `b` with t in [0, t_max]. The far distance is
-    /// enlarged by a few ulps so that rounding cannot miss a box that a
-    /// primitive inside it is hit in (Ize 2013).
-    #[inline]
-    fn hits(&self, node: &BvhNode, t_max: f64) -> bool {
-        self.entry(node, t_max as f32).is_some()
-    }
-
-    /// The distance at which the ray enters the node's box, if it does so
-    /// before `t_max`.
-    #[inline]
-    fn entry(&self, node: &BvhNode, t_max: f32) -> Option<f32> {
-        let t0 = (Vec3A::from_array(node.min) - self.origin) * self.inv_dir;
-        let t1 = (Vec3A::from_array(node.max) - self.origin) * self.inv_dir;
-        let near = t0.min(t1).max_element().max(0.0);
-        let far = t0.max(t1).min_element() * (1.0 + 8.0 * f32::EPSILON);
-        (near <= far.min(t_max)).then_some(near)
     }
 }
 
@@ -139,9 +140,11 @@ impl Bvh {
             })
             .collect();
         let nodes = build_node(&mut items);
+        let wide = wide::collapse(&nodes);
         Bvh {
             bounds: bounds.iter().fold(Aabb::EMPTY, |b, i| b.union(i)),
-            nodes,
+            stack_need: wide::stack_need(&wide),
+            wide,
             order: items.iter().map(|i| i.index).collect(),
         }
     }
@@ -151,9 +154,14 @@ impl Bvh {
         &self.order
     }
 
-    /// Number of nodes.
+    /// Number of (4-wide) nodes.
     pub fn node_count(&self) -> usize {
-        self.nodes.len()
+        self.wide.len()
+    }
+
+    /// Heap memory of the nodes and the item order, in bytes.
+    pub fn memory_bytes(&self) -> usize {
+        self.wide.len() * std::mem::size_of::<WideNode>() + self.order.len() * 4
     }
 
     /// Bounds of everything in the tree.
@@ -166,123 +174,35 @@ impl Bvh {
     /// into [`order`](Self::order)); `test` returns the distance of a
     /// closer hit, which then shrinks `t_max`. Returns the final `t_max`.
     ///
-    /// Both children's boxes are tested at their parent; the nearer is
-    /// visited first and the farther is pushed with its entry distance, so
-    /// it is skipped without another box test once a closer hit is known.
+    /// Runs on the 4-wide form: one SIMD test decides a node's four
+    /// children; those hit are taken nearest first, and any whose entry lies
+    /// beyond a closer hit found meanwhile is dropped untested.
     #[inline]
     pub fn closest(
         &self,
         ray: &BoxRay,
-        mut t_max: f64,
-        mut test: impl FnMut(usize, f64) -> Option<f64>,
+        t_max: f64,
+        test: impl FnMut(usize, f64) -> Option<f64>,
     ) -> f64 {
-        let Some(root) = self.nodes.first() else {
-            return t_max;
-        };
-        if !ray.hits(root, t_max) {
-            return t_max;
-        }
-        let mut stack = [(0u32, 0f32); STACK];
-        let mut top = 0;
-        let mut current = 0usize;
-        loop {
-            let node = &self.nodes[current];
-            if node.count > 0 {
-                let start = node.offset as usize;
-                for position in start..start + node.count as usize {
-                    if let Some(t) = test(position, t_max) {
-                        t_max = t;
-                    }
-                }
-            } else {
-                let (left, right) = (current + 1, node.offset as usize);
-                let limit = t_max as f32;
-                match (
-                    ray.entry(&self.nodes[left], limit),
-                    ray.entry(&self.nodes[right], limit),
-                ) {
-                    (Some(a), Some(b)) => {
-                        let (near, far, far_t) = if a <= b {
-                            (left, right, b)
-                        } else {
-                            (right, left, a)
-                        };
-                        if top < STACK {
-                            stack[top] = (far as u32, far_t);
-                            top += 1;
-                        }
-                        current = near;
-                        continue;
-                    }
-                    (Some(_), None) => {
-                        current = left;
-                        continue;
-                    }
-                    (None, Some(_)) => {
-                        current = right;
-                        continue;
-                    }
-                    (None, None) => {}
-                }
-            }
-            // Next pushed node that may still hold a closer hit.
-            loop {
-                if top == 0 {
-                    return t_max;
-                }
-                top -= 1;
-                let (node, entry) = stack[top];
-                if f64::from(entry) <= t_max {
-                    current = node as usize;
-                    break;
-                }
-            }
+        if self.stack_need <= wide::STACK {
+            let mut stack = [wide::StackEntry::default(); wide::STACK];
+            wide::closest(&self.wide, ray.origin, ray.inv_dir, t_max, &mut stack, test)
+        } else {
+            let mut stack = vec![wide::StackEntry::default(); self.stack_need];
+            wide::closest(&self.wide, ray.origin, ray.inv_dir, t_max, &mut stack, test)
         }
     }
 
     /// Any-hit traversal: true as soon as `test(position)` is true for an
-    /// item in a leaf the ray meets within `t_max`. Children are tested at
-    /// their parent, so a missed child is never pushed.
+    /// item in a leaf the ray meets within `t_max`.
     #[inline]
-    pub fn any(&self, ray: &BoxRay, t_max: f64, mut test: impl FnMut(usize) -> bool) -> bool {
-        let Some(root) = self.nodes.first() else {
-            return false;
-        };
-        if !ray.hits(root, t_max) {
-            return false;
-        }
-        let limit = t_max as f32;
-        let mut stack = [0u32; STACK];
-        let mut top = 0;
-        let mut current = 0usize;
-        loop {
-            let node = &self.nodes[current];
-            if node.count > 0 {
-                let start = node.offset as usize;
-                if (start..start + node.count as usize).any(&mut test) {
-                    return true;
-                }
-            } else {
-                let (left, right) = (current + 1, node.offset as usize);
-                let hit_left = ray.entry(&self.nodes[left], limit).is_some();
-                let hit_right = ray.entry(&self.nodes[right], limit).is_some();
-                if hit_left && hit_right {
-                    if top < STACK {
-                        stack[top] = right as u32;
-                        top += 1;
-                    }
-                    current = left;
-                    continue;
-                } else if hit_left || hit_right {
-                    current = if hit_left { left } else { right };
-                    continue;
-                }
-            }
-            if top == 0 {
-                return false;
-            }
-            top -= 1;
-            current = stack[top] as usize;
+    pub fn any(&self, ray: &BoxRay, t_max: f64, test: impl FnMut(usize) -> bool) -> bool {
+        if self.stack_need <= wide::STACK {
+            let mut stack = [0u32; wide::STACK];
+            wide::any(&self.wide, ray.origin, ray.inv_dir, t_max, &mut stack, test)
+        } else {
+            let mut stack = vec![0u32; self.stack_need];
+            wide::any(&self.wide, ray.origin, ray.inv_dir, t_max, &mut stack, test)
         }
     }
 }
@@ -461,20 +381,25 @@ mod tests {
                 seen[i as usize] += 1;
             }
             assert!(seen.iter().all(|&c| c == 1), "n = {n}");
-            // Every node's bounds contain its children's.
-            for (i, node) in bvh.nodes.iter().enumerate() {
-                if node.count == 0 {
-                    for child in [i + 1, node.offset as usize] {
-                        let c = bvh.nodes[child].bounds();
-                        assert!(node.bounds().union(&c) == node.bounds());
-                    }
-                } else {
-                    for p in node.offset as usize..(node.offset + node.count as u32) as usize {
-                        let b = boxes[bvh.order()[p] as usize];
-                        assert!(node.bounds().union(&b) == node.bounds());
+            // Every slot's box contains what is below it, and every item
+            // position is reached from exactly one leaf slot.
+            let mut reached = vec![0; n];
+            for node in &bvh.wide {
+                for (bounds, child, count) in node.slots() {
+                    if count == 0 {
+                        for (inner, _, _) in bvh.wide[child as usize].slots() {
+                            assert_eq!(bounds.union(&inner), bounds);
+                        }
+                    } else {
+                        for p in child as usize..child as usize + count as usize {
+                            reached[p] += 1;
+                            let b = boxes[bvh.order()[p] as usize];
+                            assert_eq!(bounds.union(&b), bounds);
+                        }
                     }
                 }
             }
+            assert!(reached.iter().all(|&c| c == 1), "n = {n}");
         }
     }
 

@@ -7,6 +7,7 @@
 
 pub mod bvh;
 mod primitive;
+mod wide;
 
 pub use primitive::{Primitive, Shape};
 

@@ -186,8 +186,7 @@ impl Mesh {
             + self.uvs.len() * 16
             + self.triangles.len() * 12
             + self.materials.len() * 4
-            + self.bvh.node_count() * std::mem::size_of::<crate::accel::bvh::BvhNode>()
-            + self.bvh.order().len() * 4
+            + self.bvh.memory_bytes()
     }
 
     #[inline]
