@@ -12,7 +12,8 @@ like-for-like one). Prints one table with Prism/Embree ratios, and the
 obvhs crate's compressed wide BVH on the same rays (one thread), the
 candidate replacement for Prism's own BVH.
 
-Set-up: bench/setup.sh. Usage: bench/.venv/bin/python bench/meshes.py [--incoherent N]
+Set-up: none; the script makes bench/.venv (embreex, numpy) on first run.
+Usage: python3 bench/meshes.py [--incoherent N]
 """
 
 import argparse
@@ -21,12 +22,17 @@ import os
 import re
 import struct
 import subprocess
+import sys
 import tempfile
 import time
 
-import numpy as np
-from embreex import rtcore_scene as rtcs
-from embreex.mesh_construction import TriangleMesh
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import benchenv  # noqa: E402
+
+benchenv.ensure()
+import numpy as np  # noqa: E402
+from embreex import rtcore_scene as rtcs  # noqa: E402
+from embreex.mesh_construction import TriangleMesh  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BENCH = os.path.join(ROOT, "bench")

@@ -7,20 +7,25 @@ scene's triangles, which this script hands to Embree. Both take the best of
 5 passes. The ratio (Embree rays/s over Prism rays/s) is what to compare
 across runs; absolute times drift on a shared machine.
 
-Set-up: bench/setup.sh (creates bench/.venv with embreex and numpy).
-Usage:  bench/.venv/bin/python bench/raycast.py [--size N] [SCENE ...]
+Set-up: none; the script makes bench/.venv (embreex, numpy) on first run.
+Usage:  python3 bench/raycast.py [--size N] [SCENE ...]
 """
 
 import argparse
 import json
 import os
 import subprocess
+import sys
 import tempfile
 import time
 
-import numpy as np
-from embreex import rtcore_scene as rtcs
-from embreex.mesh_construction import TriangleMesh
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import benchenv  # noqa: E402
+
+benchenv.ensure()
+import numpy as np  # noqa: E402
+from embreex import rtcore_scene as rtcs  # noqa: E402
+from embreex.mesh_construction import TriangleMesh  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

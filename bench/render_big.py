@@ -3,7 +3,7 @@
 bunny, and OBJ/PLY/glTF models) and reports the render summary and peak
 resident memory. Makes the meshes with bench/meshes.py's generators first.
 
-Usage: bench/.venv/bin/python bench/render_big.py  → bench/out/big.png
+Usage: python3 bench/render_big.py  → bench/out/big.png
 """
 
 import os

@@ -11,7 +11,7 @@ absolute times on a shared machine drift. POV-Ray spends a fixed time
 starting up, measured on a 1×1 render of the same scene; the last column
 compares Prism's whole run with POV-Ray's time past start-up.
 
-Set-up: bench/setup.sh (installs POV-Ray from Debian).
+Set-up: none; POV-Ray (Debian's povray) is installed by bench/setup.sh on first run.
 Usage:  python3 bench/run.py [--repeat N] [--threads T]
 Pictures: bench/out/NAME-prism.png and bench/out/NAME-povray.png.
 """
@@ -46,7 +46,8 @@ def main():
     parser.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     args = parser.parse_args()
     if shutil.which("povray") is None:
-        sys.exit("povray not found: run bench/setup.sh first")
+        # Installs Debian's povray (and the Embree venv) for the benchmarks.
+        subprocess.run([os.path.join(ROOT, "bench", "setup.sh")], check=True)
     subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
     prism = os.path.join(ROOT, "target", "release", "prism")
     os.makedirs(OUT, exist_ok=True)
