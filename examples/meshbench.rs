@@ -75,9 +75,13 @@ fn main() -> anyhow::Result<()> {
     let start = Instant::now();
     let model = load_model(Path::new(&args[1])).map_err(|e| anyhow::anyhow!("{e}"))?;
     let load_s = start.elapsed().as_secs_f64();
-    let triangles_in = model.mesh.clone();
+    anyhow::ensure!(
+        model.meshes.len() == 1,
+        "meshbench takes single-mesh models (OBJ, PLY)"
+    );
+    let triangles_in = model.meshes[0].clone();
     let start = Instant::now();
-    let mesh = Mesh::new(model.mesh)?;
+    let mesh = Mesh::new(triangles_in.clone())?;
     let build_s = start.elapsed().as_secs_f64();
 
     // (a) primary rays: a pinhole camera 40° wide looking at the model.

@@ -209,13 +209,21 @@ fn gltf_brings_meshes_node_transforms_camera_and_lights() {
         s.camera.position
     );
     assert_eq!(s.lights.len(), 1, "KHR_lights_punctual point light");
-    let Shape::Mesh(m) = &s.aggregate.primitives()[1].shape else {
-        panic!("mesh")
-    };
-    assert_eq!(m.mesh.triangle_count(), 12);
-    // The second pyramid is scaled ×1.4 in y by its node: 1.4 tall.
-    let b = m.bounds();
-    assert!((b.max.y - (1.4 + 0.002)).abs() < 1e-6, "{b:?}");
+    // Two nodes, two glTF meshes: two placements of six triangles each.
+    let meshes: Vec<_> = s
+        .aggregate
+        .primitives()
+        .iter()
+        .filter_map(|p| match &p.shape {
+            Shape::Mesh(m) => Some(m),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(meshes.len(), 2);
+    assert!(meshes.iter().all(|m| m.mesh.triangle_count() == 6));
+    // The glass pyramid is scaled ×1.4 in y by its node: 1.4 tall.
+    let tallest = meshes.iter().map(|m| m.bounds().max.y).fold(0.0, f64::max);
+    assert!((tallest - (1.4 + 0.002)).abs() < 1e-6, "{tallest}");
     // Its glass material: transmission and ior.
     assert!(
         s.materials
@@ -275,10 +283,43 @@ fn glb_binary_container_loads() {
     glb.extend(&bin);
     std::fs::write(dir.path().join("p.glb"), glb).unwrap();
     let s = scene_with(dir.path(), "file = \"p.glb\"").unwrap();
-    let Shape::Mesh(m) = &s.aggregate.primitives()[0].shape else {
-        panic!("mesh")
-    };
-    assert_eq!(m.mesh.triangle_count(), 12);
+    let triangles: usize = s
+        .aggregate
+        .primitives()
+        .iter()
+        .map(|p| match &p.shape {
+            Shape::Mesh(m) => m.mesh.triangle_count(),
+            _ => 0,
+        })
+        .sum();
+    assert_eq!(triangles, 12);
+}
+
+#[test]
+fn a_gltf_mesh_used_by_two_nodes_is_stored_once() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        models_dir().join("pyramid.bin"),
+        dir.path().join("pyramid.bin"),
+    )
+    .unwrap();
+    // Point the second node at the first node's mesh.
+    let json = pyramid_gltf_json().replacen("\"mesh\": 1", "\"mesh\": 0", 1);
+    std::fs::write(dir.path().join("twice.gltf"), json).unwrap();
+    let s = scene_with(dir.path(), "file = \"twice.gltf\"").unwrap();
+    let meshes: Vec<_> = s
+        .aggregate
+        .primitives()
+        .iter()
+        .filter_map(|p| match &p.shape {
+            Shape::Mesh(m) => Some(m),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(meshes.len(), 2);
+    assert!(std::sync::Arc::ptr_eq(&meshes[0].mesh, &meshes[1].mesh));
+    // Each placement keeps its own node transform.
+    assert_ne!(meshes[0].transform, meshes[1].transform);
 }
 
 #[test]

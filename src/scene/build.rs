@@ -14,10 +14,20 @@ use super::error::Diagnostics;
 use super::format::*;
 use super::models::{ModelCamera, load_model};
 
+/// How messages name object `index`.
+fn label_of(d: &ObjectDesc, index: usize) -> String {
+    match &d.name {
+        Some(n) => format!("object `{n}` (objects[{index}])"),
+        None => format!("objects[{index}]"),
+    }
+}
+
 /// A model file, read and built once however often it is placed.
 #[derive(Clone)]
 struct LoadedModel {
-    mesh: Arc<Mesh>,
+    meshes: Vec<Arc<Mesh>>,
+    /// (index into `meshes`, mesh to model space; `None`: as it is).
+    placements: Vec<(usize, Option<Transform>)>,
     /// Scene material index per material slot of the mesh.
     slots: Arc<[u32]>,
     lights: Vec<Light>,
@@ -75,7 +85,7 @@ pub fn build(file: SceneFile, base_dir: &Path, diags: &mut Diagnostics) -> Optio
         .objects
         .iter()
         .enumerate()
-        .filter_map(|(i, o)| c.object(i, o, &material_index, &file.unparsed))
+        .flat_map(|(i, o)| c.object(i, o, &material_index, &file.unparsed))
         .collect();
     let camera = camera.or(c.model_camera);
     // A [camera] that failed to parse is already reported.
@@ -446,13 +456,13 @@ impl Check<'_, '_> {
         desc: &Spanned<ObjectDesc>,
         materials: &BTreeMap<&str, u32>,
         unparsed: &BTreeSet<String>,
-    ) -> Option<Primitive> {
+    ) -> Vec<Primitive> {
         let d = desc.get_ref();
         let kind = *d.kind.get_ref();
-        let label = match &d.name {
-            Some(n) => format!("object `{n}` (objects[{index}])"),
-            None => format!("objects[{index}]"),
-        };
+        if kind == ObjectKind::Mesh {
+            return self.mesh_object(d, desc, &label_of(d, index), materials, unparsed);
+        }
+        let label = label_of(d, index);
         let kind_name = kind.name();
         let material = match &d.material {
             None if kind == ObjectKind::Mesh => None,
@@ -490,38 +500,78 @@ impl Check<'_, '_> {
                 );
             }
         }
-        let shape = match kind {
-            ObjectKind::Mesh => {
-                let Some(file) = &d.file else {
-                    self.error(desc.span(), format!("{label}: a mesh needs `file`"));
-                    return None;
-                };
-                let has_transform = d.transform.as_ref().is_some_and(|t| !t.is_empty());
-                let transform = transform?;
-                let loaded = self.model(file, &label)?;
-                self.place_model_extras(&loaded, Some(&transform).filter(|_| has_transform));
-                let (mesh, slots) = (loaded.mesh, loaded.slots);
-                let materials: Arc<[u32]> = match (&d.material, material) {
-                    (Some(_), Some(m)) => Arc::new([m]),
-                    (Some(_), None) => return None,
-                    (None, _) => slots,
-                };
-                let first = materials[0];
-                return Some(Primitive {
-                    shape: Shape::Mesh(MeshInstance {
-                        mesh,
-                        transform: has_transform.then_some(transform),
-                        materials,
-                    }),
-                    material: first,
-                });
-            }
-            _ => self.analytic_shape(kind, d, desc, &label, transform)?,
+        let Some(shape) = self.analytic_shape(kind, d, desc, &label, transform) else {
+            return Vec::new();
         };
-        Some(Primitive {
-            shape,
-            material: material?,
-        })
+        material
+            .map(|material| Primitive { shape, material })
+            .into_iter()
+            .collect()
+    }
+
+    /// The primitives of a mesh object: one instance per placement of each
+    /// of the model's meshes.
+    fn mesh_object(
+        &mut self,
+        d: &ObjectDesc,
+        desc: &Spanned<ObjectDesc>,
+        label: &str,
+        materials: &BTreeMap<&str, u32>,
+        unparsed: &BTreeSet<String>,
+    ) -> Vec<Primitive> {
+        let material = d
+            .material
+            .as_ref()
+            .map(|name| self.material_named(name, materials, unparsed, label));
+        let transform = self.transform(d.transform.as_deref().unwrap_or_default(), label);
+        for (key, span) in [
+            ("center", d.center.as_ref().map(Spanned::span)),
+            ("radius", d.radius.as_ref().map(Spanned::span)),
+            ("normal", d.normal.as_ref().map(Spanned::span)),
+            ("distance", d.distance.as_ref().map(Spanned::span)),
+            ("point", d.point.as_ref().map(Spanned::span)),
+            ("vertices", d.vertices.as_ref().map(Spanned::span)),
+        ] {
+            if let Some(span) = span {
+                self.error(span, format!("{label}: `{key}` does not apply to a mesh"));
+            }
+        }
+        let Some(file) = &d.file else {
+            self.error(desc.span(), format!("{label}: a mesh needs `file`"));
+            return Vec::new();
+        };
+        let has_transform = d.transform.as_ref().is_some_and(|t| !t.is_empty());
+        let (Some(transform), Some(loaded)) = (transform, self.model(file, label)) else {
+            return Vec::new();
+        };
+        let object = has_transform.then_some(transform);
+        self.place_model_extras(&loaded, object.as_ref());
+        let materials: Arc<[u32]> = match material {
+            Some(Some(m)) => Arc::new([m]),
+            Some(None) => return Vec::new(),
+            None => loaded.slots.clone(),
+        };
+        loaded
+            .placements
+            .iter()
+            .filter_map(|(mesh, placement)| {
+                // The placement inside the model first, then the object's.
+                let transform = match (placement, &object) {
+                    (None, None) => None,
+                    (Some(p), None) => Some(*p),
+                    (None, Some(o)) => Some(*o),
+                    (Some(p), Some(o)) => Some(Transform::from_affine(o.to_world * p.to_world)?),
+                };
+                Some(Primitive {
+                    shape: Shape::Mesh(MeshInstance {
+                        mesh: loaded.meshes[*mesh].clone(),
+                        transform,
+                        materials: materials.clone(),
+                    }),
+                    material: materials[0],
+                })
+            })
+            .collect()
     }
 
     /// The index of material `name`, or an error listing the known ones.
@@ -651,13 +701,29 @@ impl Check<'_, '_> {
                 return None;
             }
         };
-        let mesh = match Mesh::new(model.mesh) {
-            Ok(m) => Arc::new(m),
-            Err(e) => {
-                self.error(file.span(), format!("{label}: {}: {e}", path.display()));
-                return None;
+        let mut meshes = Vec::with_capacity(model.meshes.len());
+        for data in model.meshes {
+            match Mesh::new(data) {
+                Ok(m) => meshes.push(Arc::new(m)),
+                Err(e) => {
+                    self.error(file.span(), format!("{label}: {}: {e}", path.display()));
+                    return None;
+                }
             }
-        };
+        }
+        let placements = model
+            .placements
+            .iter()
+            .map(|&(mesh, m)| {
+                let affine = DAffine3::from_mat4(m);
+                (
+                    mesh,
+                    (affine != DAffine3::IDENTITY)
+                        .then(|| Transform::from_affine(affine))
+                        .flatten(),
+                )
+            })
+            .collect();
         let slots: Arc<[u32]> = if model.materials.is_empty() {
             let default = *self.default_material.get_or_insert_with(|| {
                 self.materials.push(Material::default());
@@ -671,7 +737,8 @@ impl Check<'_, '_> {
         };
         self.warnings.extend(model.warnings);
         let loaded = LoadedModel {
-            mesh,
+            meshes,
+            placements,
             slots,
             lights: model.lights,
             camera: model.camera,

@@ -1,5 +1,6 @@
 //! glTF 2.0 (.gltf and .glb) through the gltf crate: the meshes of the
-//! default scene with their node transforms baked in, the first camera,
+//! default scene, each stored once and placed by every node that uses it
+//! (with the node's world transform), the first camera,
 //! KHR_lights_punctual lights, and materials mapped onto the Whitted model
 //! (see docs/scene-format.md):
 //! Od = baseColorFactor × baseColorTexture, kd = 1 − metallic,
@@ -52,8 +53,12 @@ pub fn load(path: &Path) -> Result<Model, ModelError> {
     }
     let default_slot = materials.len() as u32;
     let mut needs_default = false;
+    // glTF mesh index → index into model.meshes: a mesh used by several
+    // nodes is read and stored once.
+    let mut mesh_slots = std::collections::HashMap::new();
     let mut model = Model {
-        mesh: MeshData::default(),
+        meshes: Vec::new(),
+        placements: Vec::new(),
         materials: Vec::new(),
         warnings: Vec::new(),
         lights: Vec::new(),
@@ -104,79 +109,23 @@ pub fn load(path: &Path) -> Result<Model, ModelError> {
             });
         }
         let Some(mesh) = node.mesh() else { continue };
-        let normal_matrix = DMat3::from_mat4(world).inverse().transpose();
-        for (p, primitive) in mesh.primitives().enumerate() {
-            if primitive.mode() != gltf::mesh::Mode::Triangles {
-                warn(format!(
-                    "mesh {}: primitive {p} is not triangles; skipped",
-                    mesh.index()
-                ));
-                continue;
-            }
-            let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-            let Some(positions) = reader.read_positions() else {
-                return Err(err(format!(
-                    "mesh {} primitive {p} has no positions",
-                    mesh.index()
-                )));
-            };
-            let base = model.mesh.positions.len() as u32;
-            let before = model.mesh.positions.len();
-            model.mesh.positions.extend(
-                positions.map(|v| world.transform_point3(DVec3::from_array(v.map(f64::from)))),
-            );
-            let count = model.mesh.positions.len() - before;
-            // Normals and uvs must cover every vertex of the mesh or none.
-            match reader.read_normals() {
-                Some(n) if model.mesh.normals.len() == before => {
-                    model.mesh.normals.extend(n.map(|v| {
-                        (normal_matrix * DVec3::from_array(v.map(f64::from))).normalize_or_zero()
-                    }))
-                }
-                _ => model.mesh.normals.clear(),
-            }
-            match reader.read_tex_coords(0) {
-                Some(t) if model.mesh.uvs.len() == before => model
-                    .mesh
-                    .uvs
-                    // glTF's v runs down the image; Prism's runs up.
-                    .extend(
-                        t.into_f32()
-                            .map(|[u, v]| DVec2::new(f64::from(u), 1.0 - f64::from(v))),
-                    ),
-                _ => model.mesh.uvs.clear(),
-            }
-            let indices: Vec<u32> = match reader.read_indices() {
-                Some(i) => i.into_u32().collect(),
-                None => (0..count as u32).collect(),
-            };
-            if let Some(&bad) = indices.iter().find(|&&i| i as usize >= count) {
-                return Err(err(format!(
-                    "mesh {} primitive {p}: index {bad} past its {count} vertices",
-                    mesh.index()
-                )));
-            }
-            let slot = match primitive.material().index() {
-                Some(i) => i as u32,
-                None => {
-                    needs_default = true;
-                    default_slot
-                }
-            };
-            for t in indices.chunks_exact(3) {
-                model
-                    .mesh
-                    .triangles
-                    .push([base + t[0], base + t[1], base + t[2]]);
-                model.mesh.materials.push(slot);
-            }
+        if DMat3::from_mat4(world).determinant().abs() < 1e-12 {
+            return Err(err(format!(
+                "node {}: its transform is singular",
+                node.index()
+            )));
         }
-    }
-    if model.mesh.normals.len() != model.mesh.positions.len() {
-        model.mesh.normals.clear();
-    }
-    if model.mesh.uvs.len() != model.mesh.positions.len() {
-        model.mesh.uvs.clear();
+        let index = match mesh_slots.get(&mesh.index()) {
+            Some(&i) => i,
+            None => {
+                let data = read_mesh(&mesh, &buffers, default_slot, &mut needs_default, &mut warn)
+                    .map_err(err)?;
+                model.meshes.push(data);
+                mesh_slots.insert(mesh.index(), model.meshes.len() - 1);
+                model.meshes.len() - 1
+            }
+        };
+        model.placements.push((index, world));
     }
     if needs_default {
         materials.push(Material::default());
@@ -184,6 +133,81 @@ pub fn load(path: &Path) -> Result<Model, ModelError> {
     model.materials = materials;
     model.warnings = warnings;
     Ok(model)
+}
+
+/// One glTF mesh (all its triangle primitives) in its own space.
+fn read_mesh(
+    mesh: &gltf::Mesh,
+    buffers: &[gltf::buffer::Data],
+    default_slot: u32,
+    needs_default: &mut bool,
+    warn: &mut impl FnMut(String),
+) -> Result<MeshData, String> {
+    let mut data = MeshData::default();
+    for (p, primitive) in mesh.primitives().enumerate() {
+        if primitive.mode() != gltf::mesh::Mode::Triangles {
+            warn(format!(
+                "mesh {}: primitive {p} is not triangles; skipped",
+                mesh.index()
+            ));
+            continue;
+        }
+        let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+        let Some(positions) = reader.read_positions() else {
+            return Err(format!(
+                "mesh {} primitive {p} has no positions",
+                mesh.index()
+            ));
+        };
+        let base = data.positions.len() as u32;
+        let before = data.positions.len();
+        data.positions
+            .extend(positions.map(|v| DVec3::from_array(v.map(f64::from))));
+        let count = data.positions.len() - before;
+        // Normals and uvs must cover every vertex of the mesh or none.
+        match reader.read_normals() {
+            Some(n) if data.normals.len() == before => data
+                .normals
+                .extend(n.map(|v| DVec3::from_array(v.map(f64::from)))),
+            _ => data.normals.clear(),
+        }
+        match reader.read_tex_coords(0) {
+            // glTF's v runs down the image; Prism's runs up.
+            Some(t) if data.uvs.len() == before => data.uvs.extend(
+                t.into_f32()
+                    .map(|[u, v]| DVec2::new(f64::from(u), 1.0 - f64::from(v))),
+            ),
+            _ => data.uvs.clear(),
+        }
+        let indices: Vec<u32> = match reader.read_indices() {
+            Some(i) => i.into_u32().collect(),
+            None => (0..count as u32).collect(),
+        };
+        if let Some(&bad) = indices.iter().find(|&&i| i as usize >= count) {
+            return Err(format!(
+                "mesh {} primitive {p}: index {bad} past its {count} vertices",
+                mesh.index()
+            ));
+        }
+        let slot = match primitive.material().index() {
+            Some(i) => i as u32,
+            None => {
+                *needs_default = true;
+                default_slot
+            }
+        };
+        for t in indices.chunks_exact(3) {
+            data.triangles.push([base + t[0], base + t[1], base + t[2]]);
+            data.materials.push(slot);
+        }
+    }
+    if data.normals.len() != data.positions.len() {
+        data.normals.clear();
+    }
+    if data.uvs.len() != data.positions.len() {
+        data.uvs.clear();
+    }
+    Ok(data)
 }
 
 fn material(

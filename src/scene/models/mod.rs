@@ -9,17 +9,21 @@ mod ply;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-use glam::DVec3;
+use glam::{DMat4, DVec3};
 
 use crate::geometry::MeshData;
 use crate::lights::Light;
 use crate::shading::Material;
 
-/// A model file, read: one mesh and the materials its triangles use.
+/// A model file, read: its meshes, where they are placed, and the
+/// materials their triangles use.
 #[derive(Debug)]
 pub struct Model {
-    /// The triangles (material slots index `materials`).
-    pub mesh: MeshData,
+    /// The meshes (material slots index `materials`), each in its own space.
+    pub meshes: Vec<MeshData>,
+    /// Placements: (index into `meshes`, mesh to model space). A mesh placed
+    /// by several glTF nodes is stored once.
+    pub placements: Vec<(usize, DMat4)>,
     /// Materials by slot; empty when the file brings none.
     pub materials: Vec<Material>,
     /// Things read but not used, for the user to know.
@@ -88,6 +92,20 @@ pub fn load_model(path: &Path) -> Result<Model, ModelError> {
             None,
             "unknown model format; expected a .obj, .ply, .gltf or .glb file",
         )),
+    }
+}
+
+impl Model {
+    /// A model of one mesh placed as it is (OBJ, PLY).
+    pub fn single(mesh: MeshData, materials: Vec<Material>, warnings: Vec<String>) -> Model {
+        Model {
+            meshes: vec![mesh],
+            placements: vec![(0, DMat4::IDENTITY)],
+            materials,
+            warnings,
+            lights: Vec::new(),
+            camera: None,
+        }
     }
 }
 

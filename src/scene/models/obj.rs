@@ -101,13 +101,7 @@ pub fn load(path: &Path) -> Result<Model, ModelError> {
     if needs_default {
         materials.push(Material::default());
     }
-    Ok(Model {
-        mesh,
-        materials,
-        warnings,
-        lights: Vec::new(),
-        camera: None,
-    })
+    Ok(Model::single(mesh, materials, warnings))
 }
 
 /// Checks `v` and `f` lines: numbers that parse and are finite, face

@@ -177,11 +177,5 @@ pub fn load(path: &Path) -> Result<Model, ModelError> {
         triangles,
         materials: Vec::new(),
     };
-    Ok(Model {
-        mesh,
-        materials: Vec::new(),
-        warnings,
-        lights: Vec::new(),
-        camera: None,
-    })
+    Ok(Model::single(mesh, Vec::new(), warnings))
 }
