@@ -14,6 +14,8 @@ const MAX_LEAF: usize = 4;
 const BINS: usize = 16;
 /// Cost of visiting a node relative to one primitive test.
 const TRAVERSAL_COST: f64 = 0.5;
+/// Depth past which the build splits at the median instead of by SAH.
+const MEDIAN_DEPTH: usize = 48;
 /// Subtrees with more items than this are built on separate threads.
 const PARALLEL_THRESHOLD: usize = 16 * 1024;
 
@@ -139,7 +141,7 @@ impl Bvh {
                 index: i as u32,
             })
             .collect();
-        let nodes = build_node(&mut items);
+        let nodes = build_node(&mut items, 0);
         let wide = wide::collapse(&nodes);
         Bvh {
             bounds: bounds.iter().fold(Aabb::EMPTY, |b, i| b.union(i)),
@@ -209,7 +211,7 @@ impl Bvh {
 
 /// Builds the subtree over `items` (reordered in place) as a node array
 /// with offsets relative to the start of `items` and of the array.
-fn build_node(items: &mut [BuildItem]) -> Vec<BvhNode> {
+fn build_node(items: &mut [BuildItem], depth: usize) -> Vec<BvhNode> {
     let bounds = items.iter().fold(Aabb::EMPTY, |b, i| b.union(&i.bounds));
     let leaf = |count: usize| vec![BvhNode::new(&bounds, 0, count as u16, 0)];
     let n = items.len();
@@ -235,7 +237,15 @@ fn build_node(items: &mut [BuildItem]) -> Vec<BvhNode> {
         }
         (n / 2, widest)
     } else {
-        match sah_split(items, &centroids, bounds.surface_area()) {
+        // Past MEDIAN_DEPTH only median splits: pathological inputs (say,
+        // exponentially spaced boxes) cannot make the tree, and the
+        // recursions over it, deeper than MEDIAN_DEPTH + log2(n).
+        let sah = if depth < MEDIAN_DEPTH {
+            sah_split(items, &centroids, bounds.surface_area())
+        } else {
+            None
+        };
+        match sah {
             Some(split) => split,
             None if n <= MAX_LEAF => return leaf(n),
             None => {
@@ -249,9 +259,15 @@ fn build_node(items: &mut [BuildItem]) -> Vec<BvhNode> {
     };
     let (left_items, right_items) = items.split_at_mut(mid);
     let (left, right) = if n > PARALLEL_THRESHOLD {
-        rayon::join(|| build_node(left_items), || build_node(right_items))
+        rayon::join(
+            || build_node(left_items, depth + 1),
+            || build_node(right_items, depth + 1),
+        )
     } else {
-        (build_node(left_items), build_node(right_items))
+        (
+            build_node(left_items, depth + 1),
+            build_node(right_items, depth + 1),
+        )
     };
     let mut nodes = Vec::with_capacity(1 + left.len() + right.len());
     nodes.push(BvhNode::new(
@@ -441,6 +457,32 @@ mod tests {
                 assert!(!entered_before(f64::INFINITY));
             }
         }
+    }
+
+    #[test]
+    fn pathological_inputs_keep_the_tree_shallow() {
+        // Exponentially spaced boxes: each SAH split peels off a few items.
+        let boxes: Vec<Aabb> = (0..5000)
+            .map(|i| {
+                let x = 1.002f64.powi(i);
+                Aabb {
+                    min: DVec3::new(x, 0.0, 0.0),
+                    max: DVec3::new(x * 1.001, 1.0, 1.0),
+                }
+            })
+            .collect();
+        let bvh = Bvh::build(&boxes);
+        assert!(
+            bvh.stack_need <= 3 * (MEDIAN_DEPTH + 14) + 4,
+            "stack need {}",
+            bvh.stack_need
+        );
+        let ray = BoxRay::new(DVec3::new(0.0, 0.5, 0.5), DVec3::X);
+        let t = bvh.closest(&ray, f64::INFINITY, |p, t_max| {
+            let b = boxes[bvh.order()[p] as usize];
+            (b.min.x < t_max).then_some(b.min.x)
+        });
+        assert_eq!(t, 1.0);
     }
 
     #[test]
