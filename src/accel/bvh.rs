@@ -13,7 +13,7 @@ const MAX_LEAF: usize = 4;
 /// Bins along the split axis.
 const BINS: usize = 16;
 /// Cost of visiting a node relative to one primitive test.
-const TRAVERSAL_COST: f64 = 0.5;
+const TRAVERSAL_COST: f64 = 1.0;
 /// Depth past which the build splits at the median instead of by SAH.
 const MEDIAN_DEPTH: usize = 48;
 /// Subtrees with more items than this are built on separate threads.
