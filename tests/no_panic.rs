@@ -58,3 +58,39 @@ proptest! {
         }
     }
 }
+
+/// Random edits of the example model files: loading gives a model or an
+/// error, never a panic.
+fn mutate(bytes: &[u8], edits: &[(usize, u8, usize)]) -> Vec<u8> {
+    let mut b = bytes.to_vec();
+    for &(at, byte, cut) in edits {
+        let at = at % (b.len() + 1);
+        let end = (at + cut % 8).min(b.len());
+        b.splice(at..end, [byte]);
+    }
+    b
+}
+
+fn load_mutated(name: &str, edits: &[(usize, u8, usize)]) {
+    let dir = tempfile::tempdir().unwrap();
+    let models = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/models");
+    for f in ["pyramid.bin", "tile.png", "tile.mtl", "crystal.mtl"] {
+        std::fs::copy(models.join(f), dir.path().join(f)).unwrap();
+    }
+    let original = std::fs::read(models.join(name)).unwrap();
+    std::fs::write(dir.path().join(name), mutate(&original, edits)).unwrap();
+    let _ = prism::scene::models::load_model(&dir.path().join(name));
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 150, .. ProptestConfig::default() })]
+
+    #[test]
+    fn edited_models_never_panic(
+        edits in prop::collection::vec((0usize..40_000, any::<u8>(), 0usize..8), 1..8),
+        which in 0usize..4,
+    ) {
+        let name = ["crystal.obj", "tile.obj", "icosphere.ply", "pyramids.gltf"][which];
+        load_mutated(name, &edits);
+    }
+}
