@@ -26,6 +26,19 @@ fn render_film(scene: &Scene, threads: usize) -> prism::render::Film {
     render(scene, &settings, &()).unwrap().film
 }
 
+/// The mesh placements of a scene, in object order.
+fn mesh_instances(scene: &Scene) -> Vec<&prism::geometry::MeshInstance> {
+    scene
+        .aggregate
+        .primitives()
+        .iter()
+        .filter_map(|p| match &p.shape {
+            Shape::Mesh(m) => Some(m),
+            _ => None,
+        })
+        .collect()
+}
+
 fn models_dir() -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/models")
 }
@@ -49,15 +62,7 @@ fn binary_ply_icosphere_covers_nearly_pi_r_squared() {
 #[test]
 fn a_model_placed_twice_is_loaded_once() {
     let s = Scene::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/models.toml")).unwrap();
-    let meshes: Vec<_> = s
-        .aggregate
-        .primitives()
-        .iter()
-        .filter_map(|p| match &p.shape {
-            Shape::Mesh(m) => Some(m.mesh.clone()),
-            _ => None,
-        })
-        .collect();
+    let meshes: Vec<_> = mesh_instances(&s).iter().map(|m| m.mesh.clone()).collect();
     assert_eq!(meshes.len(), 5);
     // Three placements of the icosphere share one mesh.
     assert!(std::sync::Arc::ptr_eq(&meshes[0], &meshes[1]));
@@ -210,15 +215,7 @@ fn gltf_brings_meshes_node_transforms_camera_and_lights() {
     );
     assert_eq!(s.lights.len(), 1, "KHR_lights_punctual point light");
     // Two nodes, two glTF meshes: two placements of six triangles each.
-    let meshes: Vec<_> = s
-        .aggregate
-        .primitives()
-        .iter()
-        .filter_map(|p| match &p.shape {
-            Shape::Mesh(m) => Some(m),
-            _ => None,
-        })
-        .collect();
+    let meshes: Vec<_> = mesh_instances(&s);
     assert_eq!(meshes.len(), 2);
     assert!(meshes.iter().all(|m| m.mesh.triangle_count() == 6));
     // The glass pyramid is scaled ×1.4 in y by its node: 1.4 tall.
@@ -283,14 +280,9 @@ fn glb_binary_container_loads() {
     glb.extend(&bin);
     std::fs::write(dir.path().join("p.glb"), glb).unwrap();
     let s = scene_with(dir.path(), "file = \"p.glb\"").unwrap();
-    let triangles: usize = s
-        .aggregate
-        .primitives()
+    let triangles: usize = mesh_instances(&s)
         .iter()
-        .map(|p| match &p.shape {
-            Shape::Mesh(m) => m.mesh.triangle_count(),
-            _ => 0,
-        })
+        .map(|m| m.mesh.triangle_count())
         .sum();
     assert_eq!(triangles, 12);
 }
@@ -307,15 +299,7 @@ fn a_gltf_mesh_used_by_two_nodes_is_stored_once() {
     let json = pyramid_gltf_json().replacen("\"mesh\": 1", "\"mesh\": 0", 1);
     std::fs::write(dir.path().join("twice.gltf"), json).unwrap();
     let s = scene_with(dir.path(), "file = \"twice.gltf\"").unwrap();
-    let meshes: Vec<_> = s
-        .aggregate
-        .primitives()
-        .iter()
-        .filter_map(|p| match &p.shape {
-            Shape::Mesh(m) => Some(m),
-            _ => None,
-        })
-        .collect();
+    let meshes: Vec<_> = mesh_instances(&s);
     assert_eq!(meshes.len(), 2);
     assert!(std::sync::Arc::ptr_eq(&meshes[0].mesh, &meshes[1].mesh));
     // Each placement keeps its own node transform.

@@ -459,24 +459,33 @@ impl Check<'_, '_> {
     ) -> Vec<Primitive> {
         let d = desc.get_ref();
         let kind = *d.kind.get_ref();
-        if kind == ObjectKind::Mesh {
-            return self.mesh_object(d, desc, &label_of(d, index), materials, unparsed);
-        }
         let label = label_of(d, index);
-        let kind_name = kind.name();
+        self.reject_foreign_keys(d, kind, &label);
+        if kind == ObjectKind::Mesh {
+            return self.mesh_object(d, desc, &label, materials, unparsed);
+        }
         let material = match &d.material {
-            None if kind == ObjectKind::Mesh => None,
+            Some(name) => self.material_named(name, materials, unparsed, &label),
             None => {
                 self.error(
                     desc.span(),
-                    format!("{label}: a {kind_name} needs `material`"),
+                    format!("{label}: a {} needs `material`", kind.name()),
                 );
                 None
             }
-            Some(name) => self.material_named(name, materials, unparsed, &label),
         };
         let transform = self.transform(d.transform.as_deref().unwrap_or_default(), &label);
-        // Keys that belong to other kinds of object.
+        let Some(shape) = self.analytic_shape(kind, d, desc, &label, transform) else {
+            return Vec::new();
+        };
+        material
+            .map(|material| Primitive { shape, material })
+            .into_iter()
+            .collect()
+    }
+
+    /// Reports the keys given that belong to other kinds of object.
+    fn reject_foreign_keys(&mut self, d: &ObjectDesc, kind: ObjectKind, label: &str) {
         let allowed: &[&str] = match kind {
             ObjectKind::Sphere => &["center", "radius"],
             ObjectKind::Plane => &["normal", "distance", "point"],
@@ -496,17 +505,10 @@ impl Check<'_, '_> {
             if let Some(span) = span.filter(|_| !allowed.contains(&key)) {
                 self.error(
                     span,
-                    format!("{label}: `{key}` does not apply to a {kind_name}"),
+                    format!("{label}: `{key}` does not apply to a {}", kind.name()),
                 );
             }
         }
-        let Some(shape) = self.analytic_shape(kind, d, desc, &label, transform) else {
-            return Vec::new();
-        };
-        material
-            .map(|material| Primitive { shape, material })
-            .into_iter()
-            .collect()
     }
 
     /// The primitives of a mesh object: one instance per placement of each
@@ -524,18 +526,6 @@ impl Check<'_, '_> {
             .as_ref()
             .map(|name| self.material_named(name, materials, unparsed, label));
         let transform = self.transform(d.transform.as_deref().unwrap_or_default(), label);
-        for (key, span) in [
-            ("center", d.center.as_ref().map(Spanned::span)),
-            ("radius", d.radius.as_ref().map(Spanned::span)),
-            ("normal", d.normal.as_ref().map(Spanned::span)),
-            ("distance", d.distance.as_ref().map(Spanned::span)),
-            ("point", d.point.as_ref().map(Spanned::span)),
-            ("vertices", d.vertices.as_ref().map(Spanned::span)),
-        ] {
-            if let Some(span) = span {
-                self.error(span, format!("{label}: `{key}` does not apply to a mesh"));
-            }
-        }
         let Some(file) = &d.file else {
             self.error(desc.span(), format!("{label}: a mesh needs `file`"));
             return Vec::new();
