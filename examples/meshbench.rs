@@ -18,6 +18,7 @@ use prism::geometry::Mesh;
 use prism::math::Frame;
 use prism::math::rng::PixelRng;
 use prism::scene::models::load_model;
+use prism::scene::resources::{LoadOptions, Resources};
 use rayon::prelude::*;
 
 struct Rays {
@@ -73,7 +74,12 @@ fn main() -> anyhow::Result<()> {
     let incoherent_count: usize = args.get(3).map_or(Ok(1 << 20), |s| s.parse())?;
 
     let start = Instant::now();
-    let model = load_model(Path::new(&args[1])).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let model_path = Path::new(&args[1]);
+    let mut resources = Resources::new(
+        model_path.parent().unwrap_or(Path::new(".")),
+        &LoadOptions::default(),
+    );
+    let model = load_model(model_path, &mut resources).map_err(|e| anyhow::anyhow!("{e}"))?;
     let load_s = start.elapsed().as_secs_f64();
     anyhow::ensure!(
         model.meshes.len() == 1,

@@ -15,11 +15,12 @@ use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use prism::image_io::{OutputFormat, write_film};
 use prism::render::RenderError;
-use prism::{RenderObserver, RenderSettings, Scene, SceneError, render};
+use prism::scene::LoadOptions;
+use prism::{RenderObserver, RenderSettings, Scene, SceneError, limits, render};
 
 /// Prism, an exact Whitted-style ray tracer.
 #[derive(Parser)]
-#[command(name = "prism", version, about)]
+#[command(name = "prism", version, about, after_help = limits::describe())]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -30,13 +31,57 @@ enum Command {
     /// Render a scene to an image (.png, .ppm, .exr, .hdr).
     Render(RenderArgs),
     /// Validate a scene file without rendering; reports every problem.
+    #[command(after_help = limits::describe())]
     Check {
         /// The scene file (TOML).
         scene: PathBuf,
+        #[command(flatten)]
+        load: LoadArgs,
     },
 }
 
+/// What a scene may read and use while loading.
 #[derive(Args)]
+struct LoadArgs {
+    /// Let the scene read files below DIR too (repeatable). By default a
+    /// scene reads only below its own folder; PRISM_ALLOW_READ adds folders
+    /// separated by ':'.
+    #[arg(long, value_name = "DIR")]
+    allow_read: Vec<PathBuf>,
+    /// Memory for decoded textures, in MiB.
+    #[arg(long, value_name = "MIB", default_value_t = limits::DEFAULT_TEXTURE_MIB,
+          value_parser = clap::value_parser!(u64).range(1..=1 << 30))]
+    texture_memory: u64,
+}
+
+impl LoadArgs {
+    /// The load options, or a message naming a folder that does not exist.
+    fn options(&self) -> Result<LoadOptions, String> {
+        let from_env = std::env::var_os("PRISM_ALLOW_READ")
+            .map(|v| std::env::split_paths(&v).collect::<Vec<_>>())
+            .unwrap_or_default();
+        let mut allow_read = Vec::new();
+        for dir in self.allow_read.iter().chain(&from_env) {
+            if dir.as_os_str().is_empty() {
+                continue;
+            }
+            if !dir.is_dir() {
+                return Err(format!(
+                    "{}: --allow-read (or PRISM_ALLOW_READ) names no folder",
+                    dir.display()
+                ));
+            }
+            allow_read.push(dir.clone());
+        }
+        Ok(LoadOptions {
+            allow_read,
+            texture_budget: self.texture_memory << 20,
+        })
+    }
+}
+
+#[derive(Args)]
+#[command(after_help = limits::describe(), allow_negative_numbers = true)]
 struct RenderArgs {
     /// Scene file (TOML); the built-in demo scene when omitted.
     scene: Option<PathBuf>,
@@ -44,16 +89,16 @@ struct RenderArgs {
     #[arg(short, long, default_value = "render.png")]
     output: PathBuf,
     /// Image width in pixels (overrides the scene).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=i64::from(limits::MAX_IMAGE_SIDE)))]
     width: Option<u32>,
     /// Image height in pixels (overrides the scene).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=i64::from(limits::MAX_IMAGE_SIDE)))]
     height: Option<u32>,
     /// Samples per pixel (overrides the scene).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=i64::from(limits::MAX_SPP)))]
     spp: Option<u32>,
     /// Longest ray path counting the camera ray (overrides the scene).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=i64::from(limits::MAX_DEPTH)))]
     max_depth: Option<u32>,
     /// Worker threads (default: all cores).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
@@ -64,6 +109,8 @@ struct RenderArgs {
     /// Print nothing but errors.
     #[arg(short, long)]
     quiet: bool,
+    #[command(flatten)]
+    load: LoadArgs,
 }
 
 const BAD_INPUT: u8 = 2;
@@ -96,7 +143,7 @@ pub fn run() -> ExitCode {
         }
     };
     match cli.command {
-        Command::Check { scene } => check(&scene),
+        Command::Check { scene, load } => check(&scene, &load),
         Command::Render(args) => render_command(&args),
     }
 }
@@ -106,8 +153,15 @@ fn report_scene_error(e: &SceneError) -> ExitCode {
     ExitCode::from(BAD_INPUT)
 }
 
-fn check(path: &Path) -> ExitCode {
-    match Scene::load(path) {
+fn check(path: &Path, load: &LoadArgs) -> ExitCode {
+    let options = match load.options() {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(BAD_INPUT);
+        }
+    };
+    match Scene::load_with(path, &options) {
         Ok(scene) => {
             for w in &scene.warnings {
                 eprintln!("warning: {w}");
@@ -149,8 +203,15 @@ fn render_command(args: &RenderArgs) -> ExitCode {
         );
         return ExitCode::from(BAD_INPUT);
     }
+    let options = match args.load.options() {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(BAD_INPUT);
+        }
+    };
     let scene = match &args.scene {
-        Some(path) => match Scene::load(path) {
+        Some(path) => match Scene::load_with(path, &options) {
             Ok(s) => s,
             Err(e) => return report_scene_error(&e),
         },

@@ -25,6 +25,7 @@ pub mod camera;
 pub mod geometry;
 pub mod image_io;
 pub mod lights;
+pub mod limits;
 pub mod math;
 pub mod render;
 pub mod scene;

@@ -14,7 +14,16 @@ fn scene_with(dir: &Path, object: &str) -> Result<Scene, String> {
          [[objects]]\ntype = \"mesh\"\nmaterial = \"white\"\n{object}\n"
     );
     std::fs::write(dir.join("scene.toml"), toml).unwrap();
-    Scene::load(&dir.join("scene.toml")).map_err(|e| e.to_string())
+    load_allowing_models(&dir.join("scene.toml")).map_err(|e| e.to_string())
+}
+
+/// Loads a scene that may also read the repository's example models.
+fn load_allowing_models(path: &Path) -> Result<Scene, prism::SceneError> {
+    let options = prism::scene::LoadOptions {
+        allow_read: vec![models_dir()],
+        ..Default::default()
+    };
+    Scene::load_with(path, &options)
 }
 
 /// Renders `scene` with its own settings on `threads` threads.
@@ -254,7 +263,7 @@ fn gltf_with_an_unsupported_required_extension_is_refused() {
         &[
             "draco.gltf",
             "KHR_draco_mesh_compression",
-            "Unsupported extension",
+            "does not support",
         ],
     );
 }
@@ -320,7 +329,7 @@ fn scene_materials_take_image_textures_and_uv_checkers() {
         tile.to_str().unwrap()
     );
     std::fs::write(dir.path().join("scene.toml"), toml).unwrap();
-    let s = Scene::load(&dir.path().join("scene.toml")).unwrap();
+    let s = load_allowing_models(&dir.path().join("scene.toml")).unwrap();
     let out = render_film(&s, 1);
     // The plane behind: a uv checker of equal black and white areas.
     let corner: Vec<f64> = (0..16)
@@ -361,7 +370,7 @@ fn smooth_shaded_icosphere_shades_like_the_true_sphere() {
              [[objects]]\nmaterial = \"white\"\n{object}\n"
         );
         std::fs::write(dir.path().join("s.toml"), toml).unwrap();
-        let s = Scene::load(&dir.path().join("s.toml")).unwrap();
+        let s = load_allowing_models(&dir.path().join("s.toml")).unwrap();
         render_film(&s, 1)
     };
     let mesh = scene(&format!(

@@ -79,7 +79,9 @@ fn load_mutated(name: &str, edits: &[(usize, u8, usize)]) {
     }
     let original = std::fs::read(models.join(name)).unwrap();
     std::fs::write(dir.path().join(name), mutate(&original, edits)).unwrap();
-    let _ = prism::scene::models::load_model(&dir.path().join(name));
+    let mut resources =
+        prism::scene::resources::Resources::new(dir.path(), &prism::scene::LoadOptions::default());
+    let _ = prism::scene::models::load_model(&dir.path().join(name), &mut resources);
 }
 
 proptest! {

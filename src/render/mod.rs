@@ -15,25 +15,11 @@ use glam::DVec3;
 use rayon::prelude::*;
 use thiserror::Error;
 
+use crate::limits;
 use crate::math::rng::PixelRng;
 use crate::math::sampling::Strata;
 use crate::scene::Scene;
 use crate::shading::whitted::{Whitted, WhittedSettings};
-
-/// Upper bounds on settings, so that a typo cannot exhaust memory, overflow
-/// the recursion stack or run for ever.
-pub mod limits {
-    /// Largest image width or height.
-    pub const MAX_IMAGE_SIDE: u32 = 32_768;
-    /// Most pixels in one image (a 16k × 16k film of f64 RGB is 6 GiB).
-    pub const MAX_PIXELS: u64 = 1 << 28;
-    /// Most samples per pixel.
-    pub const MAX_SPP: u32 = 65_536;
-    /// Deepest ray path (each level is a stack frame).
-    pub const MAX_DEPTH: u32 = 256;
-    /// Most shadow feelers per sphere light and shading point.
-    pub const MAX_LIGHT_SAMPLES: u32 = 65_536;
-}
 
 /// Side of the square tiles the image is cut into.
 const TILE: u32 = 16;

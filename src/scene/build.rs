@@ -13,6 +13,7 @@ use super::Scene;
 use super::error::Diagnostics;
 use super::format::*;
 use super::models::{ModelCamera, load_model};
+use super::resources::{LoadOptions, Resources};
 
 /// How messages name object `index`.
 fn label_of(d: &ObjectDesc, index: usize) -> String {
@@ -37,16 +38,22 @@ use crate::accel::{Aggregate, Primitive, Shape};
 use crate::camera::{Camera, FovAxis, Projection};
 use crate::geometry::{Ellipsoid, Mesh, MeshInstance, Plane, Polygon, Sphere};
 use crate::lights::{Light, LightShape};
+use crate::limits;
 use crate::math::Transform;
-use crate::render::{RenderSettings, limits};
-use crate::shading::texture::ImageTexture;
+use crate::render::RenderSettings;
 use crate::shading::{Fresnel, Highlight, Material, Texture};
 
 /// Builds the runtime scene; `None` if any problem was recorded.
-pub fn build(file: SceneFile, base_dir: &Path, diags: &mut Diagnostics) -> Option<Scene> {
+pub fn build(
+    file: SceneFile,
+    base_dir: &Path,
+    options: &LoadOptions,
+    diags: &mut Diagnostics,
+) -> Option<Scene> {
     let mut c = Check {
         diags,
         base_dir: base_dir.to_path_buf(),
+        resources: Resources::new(base_dir, options),
         materials: Vec::new(),
         models: BTreeMap::new(),
         model_lights: Vec::new(),
@@ -117,6 +124,8 @@ struct Check<'d, 's> {
     diags: &'d mut Diagnostics<'s>,
     /// Model paths are relative to this (the scene file's folder).
     base_dir: PathBuf,
+    /// What the scene may read; textures decoded once.
+    resources: Resources,
     /// The scene's materials: the file's, then those models bring.
     materials: Vec<Material>,
     /// Models loaded so far, by path: placing a model again shares its mesh.
@@ -324,11 +333,8 @@ impl Check<'_, '_> {
             }
             (None, Some(file)) => {
                 let path = self.base_dir.join(file.get_ref());
-                match ImageTexture::load(&path) {
-                    Ok(image) => Texture::Image {
-                        image: Arc::new(image),
-                        tint: color,
-                    },
+                match self.resources.texture_file(&path) {
+                    Ok(image) => Texture::Image { image, tint: color },
                     Err(e) => {
                         self.error(
                             file.span(),
@@ -684,7 +690,7 @@ impl Check<'_, '_> {
         if let Some(found) = self.models.get(&key) {
             return Some(found.clone());
         }
-        let model = match load_model(&path) {
+        let model = match load_model(&path, &mut self.resources) {
             Ok(m) => m,
             Err(e) => {
                 self.error(file.span(), format!("{label}: {e}"));

@@ -7,8 +7,10 @@ pub mod error;
 pub mod format;
 pub mod load;
 pub mod models;
+pub mod resources;
 
 pub use error::{Diagnostic, SceneError};
+pub use resources::LoadOptions;
 
 use std::path::Path;
 
@@ -57,9 +59,20 @@ impl Scene {
 
     /// [`from_toml`](Self::from_toml) with model paths relative to `base_dir`.
     pub fn from_toml_in(source: &str, origin: &str, base_dir: &Path) -> Result<Scene, SceneError> {
+        Scene::from_toml_with(source, origin, base_dir, &LoadOptions::default())
+    }
+
+    /// [`from_toml_in`](Self::from_toml_in) with `options` (the folders it
+    /// may read besides `base_dir`, the texture budget).
+    pub fn from_toml_with(
+        source: &str,
+        origin: &str,
+        base_dir: &Path,
+        options: &LoadOptions,
+    ) -> Result<Scene, SceneError> {
         let mut diags = error::Diagnostics::new(source);
         let scene = load::parse(source, &mut diags)
-            .and_then(|file| build::build(file, base_dir, &mut diags));
+            .and_then(|file| build::build(file, base_dir, options, &mut diags));
         match scene {
             Some(scene) if diags.is_empty() => Ok(scene),
             _ => Err(SceneError::Invalid {
@@ -71,6 +84,11 @@ impl Scene {
 
     /// Reads and builds the scene file at `path`.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        Scene::load_with(path, &LoadOptions::default())
+    }
+
+    /// [`load`](Self::load) with `options`.
+    pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Scene, SceneError> {
         let bytes = std::fs::read(path).map_err(|source| SceneError::Read {
             path: path.to_path_buf(),
             source,
@@ -82,7 +100,7 @@ impl Scene {
                     .parent()
                     .filter(|p| !p.as_os_str().is_empty())
                     .unwrap_or(Path::new("."));
-                Scene::from_toml_in(&source, &origin, base_dir)
+                Scene::from_toml_with(&source, &origin, base_dir, options)
             }
             Err(e) => {
                 let valid = std::str::from_utf8(&e.as_bytes()[..e.utf8_error().valid_up_to()])

@@ -1,92 +1,151 @@
 //! Surface colour Od as a function of position or texture coordinates.
 
-use std::path::Path;
-use std::sync::Arc;
+use std::io::{BufRead, Seek};
+use std::sync::{Arc, LazyLock};
 
 use glam::{DVec2, DVec3};
+use image::{ColorType, DynamicImage, ImageDecoder};
 
-/// An image to look up by texture coordinates, stored as linear RGB.
+/// Texels as compact as the file allows: 8-bit sRGB stays 8-bit (3 bytes a
+/// texel, linearised by table at lookup); deeper and float images are
+/// linear f32 (12 bytes), never widened to f64.
+#[derive(Clone, Debug, PartialEq)]
+enum Texels {
+    Srgb8(Vec<[u8; 3]>),
+    Linear(Vec<[f32; 3]>),
+}
+
+/// An image to look up by texture coordinates.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ImageTexture {
     width: usize,
     height: usize,
-    texels: Vec<DVec3>,
+    texels: Texels,
+}
+
+/// Why an image could not become a texture.
+#[derive(Debug, PartialEq)]
+pub enum DecodeError {
+    /// Decoding would need `needed` bytes, more than the budget left.
+    OverBudget {
+        /// Bytes the decoded image (and its decoding) would take.
+        needed: u64,
+    },
+    /// The decoder's message.
+    Image(String),
+}
+
+/// The sRGB decoding of each 8-bit value (IEC 61966-2-1).
+static SRGB_TO_LINEAR: LazyLock<[f64; 256]> =
+    LazyLock::new(|| std::array::from_fn(|i| srgb_to_linear(i as f64 / 255.0)));
+
+/// The inverse sRGB transfer function of an encoded value in [0, 1].
+pub fn srgb_to_linear(c: f64) -> f64 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
 }
 
 impl ImageTexture {
-    /// Reads an image file (PNG, JPEG, …); 8-bit images are taken as sRGB
-    /// and decoded to linear values.
-    pub fn load(path: &Path) -> Result<Self, String> {
-        let img = image::open(path).map_err(|e| e.to_string())?;
-        let linear = !matches!(
-            img.color(),
-            image::ColorType::L8
-                | image::ColorType::La8
-                | image::ColorType::Rgb8
-                | image::ColorType::Rgba8
+    /// Decodes the image `reader` holds (PNG, JPEG, EXR, HDR, PNM), if it
+    /// fits in `budget` bytes: the size is read from the header and checked
+    /// before anything is decoded. Integer images are taken as sRGB, float
+    /// images as linear.
+    pub fn decode<R: BufRead + Seek>(
+        reader: image::ImageReader<R>,
+        budget: u64,
+    ) -> Result<Self, DecodeError> {
+        let image_error = |e: image::ImageError| DecodeError::Image(e.to_string());
+        let mut decoder = reader.into_decoder().map_err(image_error)?;
+        let (w, h) = decoder.dimensions();
+        let texels = u64::from(w) * u64::from(h);
+        let color = decoder.color_type();
+        let eight_bit = matches!(
+            color,
+            ColorType::L8 | ColorType::La8 | ColorType::Rgb8 | ColorType::Rgba8
         );
-        let rgb = img.to_rgb32f();
-        let decode = |c: f32| {
-            let c = f64::from(c);
-            if linear {
-                c
-            } else if c <= 0.04045 {
-                c / 12.92
-            } else {
-                ((c + 0.055) / 1.055).powf(2.4)
-            }
+        let stored = texels * if eight_bit { 3 } else { 12 };
+        // The decoder's own buffer exists beside ours for a moment.
+        let needed = stored.max(decoder.total_bytes());
+        if needed > budget {
+            return Err(DecodeError::OverBudget { needed });
+        }
+        let mut limits = image::Limits::default();
+        limits.max_alloc = Some(decoder.total_bytes().saturating_add(1 << 20));
+        decoder.set_limits(limits).map_err(image_error)?;
+        let image = DynamicImage::from_decoder(decoder).map_err(image_error)?;
+        let (width, height) = (w as usize, h as usize);
+        let texels = if eight_bit {
+            Texels::Srgb8(image.into_rgb8().pixels().map(|p| p.0).collect())
+        } else if matches!(color, ColorType::Rgb32F | ColorType::Rgba32F) {
+            Texels::Linear(image.into_rgb32f().pixels().map(|p| p.0).collect())
+        } else {
+            let decode = |c: f32| srgb_to_linear(f64::from(c)) as f32;
+            Texels::Linear(
+                image
+                    .into_rgb32f()
+                    .pixels()
+                    .map(|p| p.0.map(decode))
+                    .collect(),
+            )
         };
         Ok(ImageTexture {
-            width: rgb.width() as usize,
-            height: rgb.height() as usize,
-            texels: rgb
-                .pixels()
-                .map(|p| DVec3::new(decode(p[0]), decode(p[1]), decode(p[2])))
-                .collect(),
-        })
-    }
-
-    /// A texture from 8-bit sRGB pixels with `channels` bytes each (the
-    /// first three are RGB), row-major from the top.
-    pub fn from_srgb8(width: usize, height: usize, pixels: &[u8], channels: usize) -> Self {
-        let decode = |c: u8| {
-            let c = f64::from(c) / 255.0;
-            if c <= 0.04045 {
-                c / 12.92
-            } else {
-                ((c + 0.055) / 1.055).powf(2.4)
-            }
-        };
-        let texels = pixels
-            .chunks_exact(channels)
-            .take(width * height)
-            .map(|p| DVec3::new(decode(p[0]), decode(p[1]), decode(p[2])))
-            .collect::<Vec<_>>();
-        let texels = if texels.len() == width * height {
-            texels
-        } else {
-            vec![DVec3::ONE; width * height]
-        };
-        ImageTexture {
             width,
             height,
             texels,
-        }
+        })
     }
 
-    /// A texture from linear texels, row-major from the top.
-    pub fn from_texels(width: usize, height: usize, texels: Vec<DVec3>) -> Self {
+    /// A texture from 8-bit sRGB texels, row-major from the top.
+    pub fn from_srgb8(width: usize, height: usize, texels: Vec<[u8; 3]>) -> Self {
         assert_eq!(texels.len(), width * height);
         ImageTexture {
             width,
             height,
-            texels,
+            texels: Texels::Srgb8(texels),
+        }
+    }
+
+    /// A texture from linear texels, row-major from the top.
+    pub fn from_linear(width: usize, height: usize, texels: Vec<[f32; 3]>) -> Self {
+        assert_eq!(texels.len(), width * height);
+        ImageTexture {
+            width,
+            height,
+            texels: Texels::Linear(texels),
+        }
+    }
+
+    /// Bytes the texels take.
+    pub fn memory_bytes(&self) -> usize {
+        match &self.texels {
+            Texels::Srgb8(t) => t.len() * 3,
+            Texels::Linear(t) => t.len() * 12,
+        }
+    }
+
+    /// Width and height in texels.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    #[inline]
+    fn texel(&self, index: usize) -> DVec3 {
+        match &self.texels {
+            Texels::Srgb8(t) => {
+                let table = &*SRGB_TO_LINEAR;
+                let [r, g, b] = t[index];
+                DVec3::new(table[r as usize], table[g as usize], table[b as usize])
+            }
+            Texels::Linear(t) => DVec3::from_array(t[index].map(f64::from)),
         }
     }
 
     /// Bilinear lookup, repeating outside [0, 1)²; v runs up the image.
     pub fn lookup(&self, uv: DVec2) -> DVec3 {
-        if self.texels.is_empty() {
+        if self.width == 0 || self.height == 0 || !uv.is_finite() {
             return DVec3::ONE;
         }
         let x = uv.x.rem_euclid(1.0) * self.width as f64 - 0.5;
@@ -96,7 +155,7 @@ impl ImageTexture {
         let texel = |i: f64, j: f64| {
             let i = (i as i64).rem_euclid(self.width as i64) as usize;
             let j = (j as i64).rem_euclid(self.height as i64) as usize;
-            self.texels[j * self.width + i]
+            self.texel(j * self.width + i)
         };
         let top = texel(x0, y0).lerp(texel(x0 + 1.0, y0), fx);
         let bottom = texel(x0, y0 + 1.0).lerp(texel(x0 + 1.0, y0 + 1.0), fx);
@@ -176,12 +235,46 @@ mod tests {
     #[test]
     fn bilinear_lookup_interpolates_and_repeats() {
         // 2×1 image: black on the left, white on the right.
-        let img = ImageTexture::from_texels(2, 1, vec![DVec3::ZERO, DVec3::ONE]);
+        let img = ImageTexture::from_linear(2, 1, vec![[0.0; 3], [1.0; 3]]);
         assert_eq!(img.lookup(DVec2::new(0.25, 0.5)), DVec3::ZERO);
         assert_eq!(img.lookup(DVec2::new(0.75, 0.5)), DVec3::ONE);
         assert!((img.lookup(DVec2::new(0.5, 0.5)) - DVec3::splat(0.5)).length() < 1e-12);
         // Wraps around: u = 1.25 is u = 0.25.
         assert_eq!(img.lookup(DVec2::new(1.25, 0.5)), DVec3::ZERO);
+    }
+
+    #[test]
+    fn eight_bit_texels_stay_eight_bit_and_decode_by_table() {
+        let img = ImageTexture::from_srgb8(1, 1, vec![[0, 188, 255]]);
+        assert_eq!(img.memory_bytes(), 3);
+        let c = img.lookup(DVec2::splat(0.5));
+        assert_eq!(c.x, 0.0);
+        assert_eq!(c.z, 1.0);
+        // sRGB 188/255 is linear 0.5 (to the 8-bit step).
+        assert!((c.y - 0.5).abs() < 0.003, "{c}");
+        assert_eq!(c.y, srgb_to_linear(188.0 / 255.0));
+    }
+
+    #[test]
+    fn decoding_is_refused_over_budget_from_the_header_alone() {
+        // A 4000×4000 PNG header: 48 MB decoded, refused before decoding.
+        let mut png = Vec::new();
+        image::RgbImage::new(4000, 4000)
+            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .unwrap();
+        let reader = |bytes: &[u8]| {
+            image::ImageReader::new(std::io::Cursor::new(bytes.to_vec()))
+                .with_guessed_format()
+                .unwrap()
+        };
+        assert_eq!(
+            ImageTexture::decode(reader(&png), 1 << 20),
+            Err(DecodeError::OverBudget {
+                needed: 4000 * 4000 * 3
+            })
+        );
+        let t = ImageTexture::decode(reader(&png), 100 << 20).unwrap();
+        assert_eq!(t.memory_bytes(), 4000 * 4000 * 3);
     }
 
     #[test]

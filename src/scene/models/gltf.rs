@@ -1,23 +1,37 @@
-//! glTF 2.0 (.gltf and .glb) through the gltf crate: the meshes of the
-//! default scene, each stored once and placed by every node that uses it
-//! (with the node's world transform), the first camera,
-//! KHR_lights_punctual lights, and materials mapped onto the Whitted model
-//! (see docs/scene-format.md):
+//! glTF 2.0 (.gltf and .glb): the meshes of the default scene, each stored
+//! once and placed by every node that uses it (with the node's world
+//! transform), the first camera, KHR_lights_punctual lights, and materials
+//! mapped onto the Whitted model (see docs/scene-format.md):
 //! Od = baseColorFactor × baseColorTexture, kd = 1 − metallic,
 //! kr = metallic, ks = 1 − roughness with a Blinn exponent 2/α² − 2
 //! (α = roughness²), kt = KHR_materials_transmission, ior =
 //! KHR_materials_ior (1.5 by default). What is not mapped is named in a
 //! warning.
+//!
+//! The file is read as untrusted input: the JSON is deserialized without the
+//! gltf crate's validation (which indexes without checking) and nothing is
+//! looked up through its wrappers; every index, buffer range, component type
+//! and element type read here is checked first, and errors name the JSON
+//! path (`meshes[0].primitives[0].attributes.POSITION`). The node graph is
+//! checked for cycles, and the number of node instances it expands to is
+//! counted before anything is expanded (nodes may be shared by several
+//! parents, which makes the count exponential in the depth).
 
+use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
 
-use glam::{DMat3, DMat4, DVec2, DVec3};
+use glam::{DMat3, DMat4, DQuat, DVec2, DVec3};
+use gltf::json::accessor::{ComponentType, GenericComponentType, Type};
+use gltf::json::mesh::{Mode, Semantic};
+use gltf::json::validation::Checked;
+use gltf::json::{self, Index, Root};
 
 use super::{Model, ModelCamera, ModelError};
 use crate::geometry::MeshData;
 use crate::lights::{Light, LightShape};
-use crate::shading::texture::ImageTexture;
+use crate::limits::{MAX_MODEL_PLACEMENTS, MAX_VALUE};
+use crate::scene::resources::{Resources, TextureKey};
 use crate::shading::{Fresnel, Highlight, Material, Texture};
 
 const SUPPORTED: &[&str] = &[
@@ -26,36 +40,64 @@ const SUPPORTED: &[&str] = &[
     "KHR_materials_ior",
 ];
 
-pub fn load(path: &Path) -> Result<Model, ModelError> {
+pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
     let err = |message: String| ModelError::new(path, None, message);
-    let parsed = gltf::Gltf::open(path).map_err(|e| err(format!("cannot read glTF: {e}")))?;
-    if let Some(ext) = parsed
-        .extensions_required()
-        .find(|e| !SUPPORTED.contains(e))
+    let bytes = res.policy.read(path).map_err(err)?;
+    let (json_bytes, bin) = if bytes.starts_with(b"glTF") {
+        split_glb(&bytes).map_err(err)?
+    } else {
+        (&bytes[..], None)
+    };
+    let root: Root = json::deserialize::from_slice(json_bytes).map_err(|e| {
+        // serde_json's line is the file's line for .gltf text.
+        let line = (bin.is_none() && !bytes.starts_with(b"glTF")).then(|| e.line());
+        ModelError::new(path, line, format!("not valid glTF JSON: {e}"))
+    })?;
+    if let Some(ext) = root
+        .extensions_required
+        .iter()
+        .find(|e| !SUPPORTED.contains(&e.as_str()))
     {
         return Err(err(format!(
             "requires the extension `{ext}`, which Prism does not support"
         )));
     }
-    let (doc, buffers, images) =
-        gltf::import(path).map_err(|e| err(format!("cannot load glTF: {e}")))?;
-    let mut warnings = Vec::new();
-    let mut warn = |w: String| {
-        let w = format!("{}: {w}", path.display());
-        if !warnings.contains(&w) {
-            warnings.push(w);
-        }
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let buffers = load_buffers(&root, bin, dir, res).map_err(err)?;
+    let mut reader = Reader {
+        root: &root,
+        buffers: &buffers,
+        file: path,
+        warnings: Vec::new(),
     };
-    let mut materials = Vec::new();
-    for (i, m) in doc.materials().enumerate() {
-        materials
-            .push(material(&m, &images, &mut warn).map_err(|e| err(format!("material {i}: {e}")))?);
+    let mut materials = Vec::with_capacity(root.materials.len());
+    for i in 0..root.materials.len() {
+        materials.push(reader.material(i, res).map_err(err)?);
     }
     let default_slot = materials.len() as u32;
     let mut needs_default = false;
-    // glTF mesh index → index into model.meshes: a mesh used by several
-    // nodes is read and stored once.
-    let mut mesh_slots = std::collections::HashMap::new();
+    let scene_index = match root.scene {
+        Some(s) => Some(s.value()),
+        None => (!root.scenes.is_empty()).then_some(0),
+    };
+    let Some(scene) = scene_index.map(|s| {
+        root.scenes
+            .get(s)
+            .ok_or_else(|| format!("scene: scene {s} does not exist"))
+    }) else {
+        return Err(err("the file has no scene".into()));
+    };
+    let scene = scene.map_err(err)?;
+    let roots: Vec<usize> = scene.nodes.iter().map(Index::value).collect();
+    let graph = NodeGraph::new(&root).map_err(err)?;
+    let instances = graph.instances(&roots).map_err(err)?;
+    if instances > MAX_MODEL_PLACEMENTS {
+        return Err(err(format!(
+            "the node graph expands to {instances} node instances (nodes shared by several \
+             parents multiply), more than the limit of {MAX_MODEL_PLACEMENTS}"
+        )));
+    }
+
     let mut model = Model {
         meshes: Vec::new(),
         placements: Vec::new(),
@@ -64,64 +106,46 @@ pub fn load(path: &Path) -> Result<Model, ModelError> {
         lights: Vec::new(),
         camera: None,
     };
-    let Some(scene) = doc.default_scene().or_else(|| doc.scenes().next()) else {
-        return Err(err("the file has no scene".into()));
-    };
-    let mut stack: Vec<(gltf::Node, DMat4)> = scene.nodes().map(|n| (n, DMat4::IDENTITY)).collect();
-    while let Some((node, parent)) = stack.pop() {
-        let local = DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(f64::from)));
-        let world = parent * local;
-        stack.extend(node.children().map(|c| (c, world)));
-        if let Some(camera) = node.camera() {
-            match camera.projection() {
-                gltf::camera::Projection::Perspective(p) if model.camera.is_none() => {
-                    model.camera = Some(ModelCamera {
-                        position: world.transform_point3(DVec3::ZERO),
-                        forward: world.transform_vector3(-DVec3::Z).normalize(),
-                        up: world.transform_vector3(DVec3::Y).normalize(),
-                        yfov: f64::from(p.yfov()),
-                    })
-                }
-                gltf::camera::Projection::Orthographic(_) => {
-                    warn("orthographic cameras are ignored".into())
-                }
-                _ => {}
-            }
-        }
-        if let Some(light) = node.light() {
-            let color = DVec3::from_array(light.color().map(f64::from));
-            let radiance = color * f64::from(light.intensity());
-            let position = world.transform_point3(DVec3::ZERO);
-            let shape = match light.kind() {
-                gltf::khr_lights_punctual::Kind::Directional => LightShape::Directional {
-                    direction: world.transform_vector3(-DVec3::Z).normalize(),
-                },
-                gltf::khr_lights_punctual::Kind::Point => LightShape::Point { position },
-                gltf::khr_lights_punctual::Kind::Spot { .. } => {
-                    warn("spot lights become point lights (the cone is ignored)".into());
-                    LightShape::Point { position }
-                }
-            };
-            model.lights.push(Light {
-                inverse_square: !matches!(shape, LightShape::Directional { .. }),
-                shape,
-                radiance,
-            });
-        }
-        let Some(mesh) = node.mesh() else { continue };
-        if DMat3::from_mat4(world).determinant().abs() < 1e-12 {
+    // glTF mesh index → index into model.meshes: a mesh used by several
+    // nodes (or by a node placed many times) is read and stored once.
+    let mut mesh_slots: HashMap<usize, usize> = HashMap::new();
+    let mut stack: Vec<(usize, DMat4)> = roots.iter().map(|&n| (n, DMat4::IDENTITY)).collect();
+    while let Some((n, parent)) = stack.pop() {
+        let node = &root.nodes[n];
+        let world = parent * local_transform(node);
+        if !world.is_finite() {
             return Err(err(format!(
-                "node {}: its transform is singular",
-                node.index()
+                "nodes[{n}]: its world transform overflows (not finite)"
             )));
         }
-        let index = match mesh_slots.get(&mesh.index()) {
+        stack.extend(graph.children[n].iter().map(|&c| (c, world)));
+        if let Some(c) = node.camera {
+            reader
+                .camera(n, c.value(), &world, &mut model.camera)
+                .map_err(err)?;
+        }
+        if let Some(light) = node
+            .extensions
+            .as_ref()
+            .and_then(|e| e.khr_lights_punctual.as_ref())
+        {
+            let l = reader.light(n, light.light.value(), &world).map_err(err)?;
+            model.lights.push(l);
+        }
+        let Some(mesh) = node.mesh else { continue };
+        if DMat3::from_mat4(world).determinant().abs() < 1e-12 {
+            return Err(err(format!(
+                "nodes[{n}]: its world transform is singular (a zero scale)"
+            )));
+        }
+        let index = match mesh_slots.get(&mesh.value()) {
             Some(&i) => i,
             None => {
-                let data = read_mesh(&mesh, &buffers, default_slot, &mut needs_default, &mut warn)
+                let data = reader
+                    .mesh(mesh.value(), n, default_slot, &mut needs_default)
                     .map_err(err)?;
                 model.meshes.push(data);
-                mesh_slots.insert(mesh.index(), model.meshes.len() - 1);
+                mesh_slots.insert(mesh.value(), model.meshes.len() - 1);
                 model.meshes.len() - 1
             }
         };
@@ -131,150 +155,950 @@ pub fn load(path: &Path) -> Result<Model, ModelError> {
         materials.push(Material::default());
     }
     model.materials = materials;
-    model.warnings = warnings;
+    model.warnings = reader.warnings;
     Ok(model)
 }
 
-/// One glTF mesh (all its triangle primitives) in its own space.
-fn read_mesh(
-    mesh: &gltf::Mesh,
-    buffers: &[gltf::buffer::Data],
-    default_slot: u32,
-    needs_default: &mut bool,
-    warn: &mut impl FnMut(String),
-) -> Result<MeshData, String> {
-    let mut data = MeshData::default();
-    for (p, primitive) in mesh.primitives().enumerate() {
-        if primitive.mode() != gltf::mesh::Mode::Triangles {
-            warn(format!(
-                "mesh {}: primitive {p} is not triangles; skipped",
-                mesh.index()
-            ));
-            continue;
-        }
-        let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-        let Some(positions) = reader.read_positions() else {
-            return Err(format!(
-                "mesh {} primitive {p} has no positions",
-                mesh.index()
-            ));
-        };
-        let base = data.positions.len() as u32;
-        let before = data.positions.len();
-        data.positions
-            .extend(positions.map(|v| DVec3::from_array(v.map(f64::from))));
-        let count = data.positions.len() - before;
-        // Normals and uvs must cover every vertex of the mesh or none.
-        match reader.read_normals() {
-            Some(n) if data.normals.len() == before => data
-                .normals
-                .extend(n.map(|v| DVec3::from_array(v.map(f64::from)))),
-            _ => data.normals.clear(),
-        }
-        match reader.read_tex_coords(0) {
-            // glTF's v runs down the image; Prism's runs up.
-            Some(t) if data.uvs.len() == before => data.uvs.extend(
-                t.into_f32()
-                    .map(|[u, v]| DVec2::new(f64::from(u), 1.0 - f64::from(v))),
-            ),
-            _ => data.uvs.clear(),
-        }
-        let indices: Vec<u32> = match reader.read_indices() {
-            Some(i) => i.into_u32().collect(),
-            None => (0..count as u32).collect(),
-        };
-        if let Some(&bad) = indices.iter().find(|&&i| i as usize >= count) {
-            return Err(format!(
-                "mesh {} primitive {p}: index {bad} past its {count} vertices",
-                mesh.index()
-            ));
-        }
-        let slot = match primitive.material().index() {
-            Some(i) => i as u32,
-            None => {
-                *needs_default = true;
-                default_slot
-            }
-        };
-        for t in indices.chunks_exact(3) {
-            data.triangles.push([base + t[0], base + t[1], base + t[2]]);
-            data.materials.push(slot);
-        }
+/// The JSON and BIN chunks of a GLB container, every length checked against
+/// the bytes actually there.
+fn split_glb(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>), String> {
+    let word = |at: usize| -> Option<u32> {
+        Some(u32::from_le_bytes(bytes.get(at..at + 4)?.try_into().ok()?))
+    };
+    let (Some(version), Some(length)) = (word(4), word(8)) else {
+        return Err("GLB: the file ends inside its 12-byte header".into());
+    };
+    if version != 2 {
+        return Err(format!("GLB: version {version}; expected 2"));
     }
-    if data.normals.len() != data.positions.len() {
-        data.normals.clear();
+    if length as usize != bytes.len() {
+        return Err(format!(
+            "GLB: the header says {length} bytes, but the file has {}",
+            bytes.len()
+        ));
     }
-    if data.uvs.len() != data.positions.len() {
-        data.uvs.clear();
+    let mut at = 12;
+    let mut chunks = Vec::new();
+    while at < bytes.len() {
+        let (Some(len), Some(kind)) = (word(at), word(at + 4)) else {
+            return Err(format!("GLB: chunk header at byte {at} is cut off"));
+        };
+        let start = at + 8;
+        let end = start
+            .checked_add(len as usize)
+            .filter(|&e| e <= bytes.len())
+            .ok_or_else(|| {
+                format!(
+                    "GLB: chunk at byte {at} claims {len} bytes, past the end of the file ({} bytes)",
+                    bytes.len()
+                )
+            })?;
+        chunks.push((kind, &bytes[start..end]));
+        // Chunks are padded to 4-byte boundaries.
+        at = end.next_multiple_of(4);
     }
-    Ok(data)
+    const JSON: u32 = u32::from_le_bytes(*b"JSON");
+    const BIN: u32 = u32::from_le_bytes(*b"BIN\0");
+    match chunks.as_slice() {
+        [(JSON, json), rest @ ..] => Ok((*json, rest.first().filter(|c| c.0 == BIN).map(|c| c.1))),
+        _ => Err("GLB: the first chunk is not JSON".into()),
+    }
 }
 
-fn material(
-    m: &gltf::Material,
-    images: &[gltf::image::Data],
-    warn: &mut impl FnMut(String),
-) -> Result<Material, String> {
-    let pbr = m.pbr_metallic_roughness();
-    let [r, g, b, _] = pbr.base_color_factor().map(f64::from);
-    let base = DVec3::new(r, g, b);
-    let metallic = f64::from(pbr.metallic_factor());
-    let roughness = f64::from(pbr.roughness_factor()).clamp(0.02, 1.0);
-    let texture = match pbr.base_color_texture() {
-        None => Texture::Solid(base),
-        Some(info) => {
-            let index = info.texture().source().index();
-            let data = images
-                .get(index)
-                .ok_or(format!("image {index} is missing"))?;
-            let channels = match data.format {
-                gltf::image::Format::R8G8B8 => 3,
-                gltf::image::Format::R8G8B8A8 => 4,
-                other => return Err(format!("image {index}: unsupported pixel format {other:?}")),
-            };
-            let image = ImageTexture::from_srgb8(
-                data.width as usize,
-                data.height as usize,
-                &data.pixels,
-                channels,
-            );
-            Texture::Image {
-                image: Arc::new(image),
-                tint: base,
+/// The bytes of every buffer: the GLB's BIN chunk, a base64 data URI, or a
+/// file beside the model (read through the scene's read policy), each at
+/// least as long as its declared `byteLength`.
+fn load_buffers(
+    root: &Root,
+    bin: Option<&[u8]>,
+    dir: &Path,
+    res: &Resources,
+) -> Result<Vec<Vec<u8>>, String> {
+    let mut buffers = Vec::with_capacity(root.buffers.len());
+    for (i, b) in root.buffers.iter().enumerate() {
+        let at = format!("buffers[{i}]");
+        let data = match b.uri.as_deref() {
+            None if i == 0 => bin
+                .ok_or(format!("{at}: has no uri and the file has no BIN chunk"))?
+                .to_vec(),
+            None => return Err(format!("{at}: has no uri")),
+            Some(uri) => read_uri(uri, dir, res).map_err(|e| format!("{at}.uri: {e}"))?,
+        };
+        let declared = b.byte_length.0;
+        if (data.len() as u64) < declared {
+            return Err(format!(
+                "{at}: byteLength is {declared}, but only {} bytes are there",
+                data.len()
+            ));
+        }
+        buffers.push(data);
+    }
+    Ok(buffers)
+}
+
+/// The bytes a glTF URI names: a `data:` URI (base64) or a relative path
+/// (percent-encoded); `file://` paths too, which the read policy then
+/// judges like any other path. Other schemes are refused.
+fn read_uri(uri: &str, dir: &Path, res: &Resources) -> Result<Vec<u8>, String> {
+    if let Some(rest) = uri.strip_prefix("data:") {
+        let (_, payload) = rest
+            .split_once(";base64,")
+            .ok_or("a data URI must be base64 (data:...;base64,...)")?;
+        return base64::decode(payload).map_err(|e| format!("bad base64 data: {e}"));
+    }
+    let path = match uri.strip_prefix("file://") {
+        Some(p) => p,
+        None if uri.contains("://") => {
+            return Err(format!(
+                "`{}`: only relative paths, file:// and data: URIs are read",
+                short(uri)
+            ));
+        }
+        None => uri,
+    };
+    let decoded = urlencoding::decode(path).map_err(|e| format!("bad URI: {e}"))?;
+    let file = dir.join(decoded.as_ref());
+    res.policy
+        .read(&file)
+        .map_err(|e| format!("{}: {e}", file.display()))
+}
+
+/// A value for messages, cut to a readable length.
+fn short(s: &str) -> String {
+    super::cut(s, 80)
+}
+
+/// Node children by index, checked: every child exists, no node is its own
+/// ancestor.
+struct NodeGraph {
+    children: Vec<Vec<usize>>,
+}
+
+impl NodeGraph {
+    fn new(root: &Root) -> Result<NodeGraph, String> {
+        let n = root.nodes.len();
+        let mut children = Vec::with_capacity(n);
+        for (i, node) in root.nodes.iter().enumerate() {
+            let mut list = Vec::new();
+            for (k, c) in node.children.iter().flatten().enumerate() {
+                let c = c.value();
+                if c >= n {
+                    return Err(format!(
+                        "nodes[{i}].children[{k}]: node {c} does not exist ({n} nodes)"
+                    ));
+                }
+                if c == i {
+                    return Err(format!("nodes[{i}] lists itself as a child (a cycle)"));
+                }
+                list.push(c);
+            }
+            children.push(list);
+        }
+        let graph = NodeGraph { children };
+        graph.check_acyclic()?;
+        Ok(graph)
+    }
+
+    /// Depth-first search without recursion (a chain of nodes may be as
+    /// long as the file allows); a child found on the current path closes a
+    /// cycle, which is named.
+    fn check_acyclic(&self) -> Result<(), String> {
+        #[derive(Clone, Copy, PartialEq)]
+        enum Mark {
+            New,
+            OnPath,
+            Done,
+        }
+        let mut mark = vec![Mark::New; self.children.len()];
+        for start in 0..self.children.len() {
+            if mark[start] != Mark::New {
+                continue;
+            }
+            // (node, next child to look at)
+            let mut path = vec![(start, 0usize)];
+            mark[start] = Mark::OnPath;
+            while let Some(&mut (node, ref mut next)) = path.last_mut() {
+                match self.children[node].get(*next) {
+                    Some(&child) => {
+                        *next += 1;
+                        match mark[child] {
+                            Mark::New => {
+                                mark[child] = Mark::OnPath;
+                                path.push((child, 0));
+                            }
+                            Mark::OnPath => {
+                                let from = path.iter().position(|p| p.0 == child).unwrap_or(0);
+                                let cycle: Vec<String> = path[from..]
+                                    .iter()
+                                    .map(|p| p.0.to_string())
+                                    .chain(std::iter::once(child.to_string()))
+                                    .collect();
+                                return Err(format!(
+                                    "the nodes form a cycle: {} (a node cannot be its own ancestor)",
+                                    cycle.join(" → ")
+                                ));
+                            }
+                            Mark::Done => {}
+                        }
+                    }
+                    None => {
+                        mark[node] = Mark::Done;
+                        path.pop();
+                    }
+                }
             }
         }
+        Ok(())
+    }
+
+    /// How many node instances the walk from `roots` visits, counted on the
+    /// (acyclic) graph without expanding it: a node shared by k parents is
+    /// visited once per path to it. Saturates instead of overflowing.
+    fn instances(&self, roots: &[usize]) -> Result<u64, String> {
+        let n = self.children.len();
+        if let Some(&bad) = roots.iter().find(|&&r| r >= n) {
+            return Err(format!("scene: root node {bad} does not exist ({n} nodes)"));
+        }
+        // Post-order without recursion.
+        let mut count: Vec<Option<u64>> = vec![None; n];
+        for &r in roots {
+            let mut stack = vec![r];
+            while let Some(&node) = stack.last() {
+                if count[node].is_some() {
+                    stack.pop();
+                    continue;
+                }
+                let pending: Vec<usize> = self.children[node]
+                    .iter()
+                    .copied()
+                    .filter(|&c| count[c].is_none())
+                    .collect();
+                if pending.is_empty() {
+                    let below = self.children[node]
+                        .iter()
+                        .fold(1u64, |s, &c| s.saturating_add(count[c].unwrap_or(0)));
+                    count[node] = Some(below);
+                    stack.pop();
+                } else {
+                    stack.extend(pending);
+                }
+            }
+        }
+        Ok(roots
+            .iter()
+            .fold(0u64, |s, &r| s.saturating_add(count[r].unwrap_or(0))))
+    }
+}
+
+/// The node's local matrix: `matrix`, or translation × rotation × scale.
+fn local_transform(node: &json::Node) -> DMat4 {
+    if let Some(m) = node.matrix {
+        return DMat4::from_cols_array(&m.map(f64::from));
+    }
+    let t = node.translation.unwrap_or([0.0; 3]).map(f64::from);
+    let r = node
+        .rotation
+        .map_or([0.0, 0.0, 0.0, 1.0], |q| q.0)
+        .map(f64::from);
+    let s = node.scale.unwrap_or([1.0; 3]).map(f64::from);
+    let q = DQuat::from_array(r);
+    // A rotation must be a unit quaternion; normalise what rounding left.
+    let q = if q.length_squared() > 0.0 && q.is_finite() {
+        q.normalize()
+    } else {
+        DQuat::from_array([f64::NAN; 4])
     };
-    if m.normal_texture().is_some()
-        || m.occlusion_texture().is_some()
-        || m.emissive_texture().is_some()
-        || pbr.metallic_roughness_texture().is_some()
-    {
-        warn("only base colour textures are used; normal, occlusion, emissive and metallic-roughness maps are ignored".into());
-    }
-    let mut kr = metallic;
-    let mut kt = m
-        .transmission()
-        .map_or(0.0, |t| f64::from(t.transmission_factor()));
-    if kr + kt > 1.0 {
-        let s = 1.0 / (kr + kt);
-        kr *= s;
-        kt *= s;
-    }
-    let alpha = roughness * roughness;
-    Ok(Material {
-        texture,
-        ka: 0.1,
-        kd: (1.0 - metallic) * (1.0 - kt),
-        ks: 1.0 - roughness,
-        shininess: (2.0 / (alpha * alpha) - 2.0).clamp(1.0, 10_000.0),
-        kr,
-        kt,
-        ior: m.ior().map_or(1.5, f64::from),
-        fresnel: if kt > 0.0 {
-            Fresnel::Exact
+    DMat4::from_scale_rotation_translation(DVec3::from_array(s), q, DVec3::from_array(t))
+}
+
+/// Reads typed data out of the checked buffers, collecting warnings.
+struct Reader<'a> {
+    root: &'a Root,
+    buffers: &'a [Vec<u8>],
+    file: &'a Path,
+    warnings: Vec<String>,
+}
+
+/// An accessor's elements, every byte of them known to lie in its buffer.
+struct Elements<'a> {
+    data: &'a [u8],
+    stride: usize,
+    count: usize,
+    component: ComponentType,
+    normalized: bool,
+}
+
+impl Elements<'_> {
+    /// Component `c` of element `i`, as a number (normalized integers
+    /// mapped to [0, 1] as the glTF specification says).
+    fn get(&self, i: usize, c: usize) -> f64 {
+        let size = component_size(self.component);
+        let at = i * self.stride + c * size;
+        let b = &self.data[at..at + size];
+        let raw = match self.component {
+            ComponentType::F32 => return f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            ComponentType::U8 => f64::from(b[0]),
+            ComponentType::I8 => f64::from(b[0] as i8),
+            ComponentType::U16 => f64::from(u16::from_le_bytes([b[0], b[1]])),
+            ComponentType::I16 => f64::from(i16::from_le_bytes([b[0], b[1]])),
+            ComponentType::U32 => f64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+        };
+        if self.normalized {
+            let max = match self.component {
+                ComponentType::U8 => 255.0,
+                ComponentType::I8 => 127.0,
+                ComponentType::U16 => 65535.0,
+                ComponentType::I16 => 32767.0,
+                _ => 1.0,
+            };
+            (raw / max).max(-1.0)
         } else {
-            Fresnel::Off
-        },
-        highlight: Highlight::Blinn,
-    })
+            raw
+        }
+    }
+
+    fn index(&self, i: usize) -> u32 {
+        self.get(i, 0) as u32
+    }
+}
+
+fn component_size(c: ComponentType) -> usize {
+    match c {
+        ComponentType::I8 | ComponentType::U8 => 1,
+        ComponentType::I16 | ComponentType::U16 => 2,
+        ComponentType::U32 | ComponentType::F32 => 4,
+    }
+}
+
+fn type_name(t: Type) -> &'static str {
+    match t {
+        Type::Scalar => "SCALAR",
+        Type::Vec2 => "VEC2",
+        Type::Vec3 => "VEC3",
+        Type::Vec4 => "VEC4",
+        Type::Mat2 => "MAT2",
+        Type::Mat3 => "MAT3",
+        Type::Mat4 => "MAT4",
+    }
+}
+
+fn component_name(c: ComponentType) -> &'static str {
+    match c {
+        ComponentType::I8 => "BYTE",
+        ComponentType::U8 => "UNSIGNED_BYTE",
+        ComponentType::I16 => "SHORT",
+        ComponentType::U16 => "UNSIGNED_SHORT",
+        ComponentType::U32 => "UNSIGNED_INT",
+        ComponentType::F32 => "FLOAT",
+    }
+}
+
+/// What an attribute may be: element type, and (component type, normalized).
+struct Expect {
+    kind: Type,
+    components: &'static [(ComponentType, bool)],
+}
+
+const POSITION: Expect = Expect {
+    kind: Type::Vec3,
+    components: &[(ComponentType::F32, false)],
+};
+const NORMAL: Expect = POSITION;
+const TEXCOORD: Expect = Expect {
+    kind: Type::Vec2,
+    components: &[
+        (ComponentType::F32, false),
+        (ComponentType::U8, true),
+        (ComponentType::U16, true),
+    ],
+};
+const INDICES: Expect = Expect {
+    kind: Type::Scalar,
+    components: &[
+        (ComponentType::U8, false),
+        (ComponentType::U16, false),
+        (ComponentType::U32, false),
+    ],
+};
+
+impl<'a> Reader<'a> {
+    fn warn(&mut self, w: String) {
+        let w = format!("{}: {w}", self.file.display());
+        if !self.warnings.contains(&w) {
+            self.warnings.push(w);
+        }
+    }
+
+    /// The accessor `index` read at JSON path `at`, checked against `expect`
+    /// and against its buffer view and buffer.
+    fn elements(
+        &self,
+        index: Index<json::Accessor>,
+        at: &str,
+        expect: &Expect,
+    ) -> Result<Elements<'a>, String> {
+        let root = self.root;
+        let i = index.value();
+        let a = root.accessors.get(i).ok_or_else(|| {
+            format!(
+                "{at}: accessor {i} does not exist ({} accessors)",
+                root.accessors.len()
+            )
+        })?;
+        let at = format!("{at} (accessors[{i}])");
+        if a.sparse.is_some() {
+            return Err(format!("{at}: sparse accessors are not supported"));
+        }
+        let kind = match a.type_ {
+            Checked::Valid(t) => t,
+            Checked::Invalid => return Err(format!("{at}: unknown element type")),
+        };
+        if kind != expect.kind {
+            return Err(format!(
+                "{at}: element type is {}; expected {}",
+                type_name(kind),
+                type_name(expect.kind)
+            ));
+        }
+        let component = match a.component_type {
+            Checked::Valid(GenericComponentType(c)) => c,
+            Checked::Invalid => return Err(format!("{at}: unknown component type")),
+        };
+        if !expect.components.contains(&(component, a.normalized)) {
+            let allowed: Vec<String> = expect
+                .components
+                .iter()
+                .map(|(c, n)| {
+                    format!(
+                        "{}{}",
+                        component_name(*c),
+                        if *n { " (normalized)" } else { "" }
+                    )
+                })
+                .collect();
+            return Err(format!(
+                "{at}: component type is {}{}; expected {}",
+                component_name(component),
+                if a.normalized { " (normalized)" } else { "" },
+                allowed.join(" or ")
+            ));
+        }
+        let Some(view_index) = a.buffer_view else {
+            return Err(format!(
+                "{at}: has no bufferView (an all-zero accessor), which is not supported"
+            ));
+        };
+        let v = view_index.value();
+        let view = root.buffer_views.get(v).ok_or_else(|| {
+            format!(
+                "{at}.bufferView: buffer view {v} does not exist ({} views)",
+                root.buffer_views.len()
+            )
+        })?;
+        let b = view.buffer.value();
+        let buffer = self.buffers.get(b).ok_or_else(|| {
+            format!(
+                "bufferViews[{v}].buffer: buffer {b} does not exist ({} buffers)",
+                self.buffers.len()
+            )
+        })?;
+        let view_start = view.byte_offset.map_or(0, |o| o.0);
+        let view_len = view.byte_length.0;
+        let view_end = view_start
+            .checked_add(view_len)
+            .filter(|&e| e <= buffer.len() as u64)
+            .ok_or_else(|| {
+                format!(
+                    "bufferViews[{v}]: bytes {view_start}..+{view_len} lie past the end of buffer {b} ({} bytes)",
+                    buffer.len()
+                )
+            })?;
+        let components = match kind {
+            Type::Scalar => 1,
+            Type::Vec2 => 2,
+            Type::Vec3 => 3,
+            _ => 4,
+        };
+        let element = (components * component_size(component)) as u64;
+        let stride = view.byte_stride.map_or(element, |s| s.0 as u64);
+        if stride < element {
+            return Err(format!(
+                "bufferViews[{v}]: byteStride {stride} is smaller than one element ({element} bytes)"
+            ));
+        }
+        let offset = a.byte_offset.map_or(0, |o| o.0);
+        let count = a.count.0;
+        // Offset of the end of the last element, in u128: no overflow.
+        let end = if count == 0 {
+            offset as u128
+        } else {
+            offset as u128 + (count as u128 - 1) * stride as u128 + element as u128
+        };
+        if end > view_len as u128 {
+            return Err(format!(
+                "{at}: {count} elements of {element} bytes (stride {stride}) from offset {offset} \
+                 need {end} bytes, but buffer view {v} has {view_len}"
+            ));
+        }
+        let data = &buffer[(view_start + offset) as usize..view_end as usize];
+        Ok(Elements {
+            data,
+            stride: stride as usize,
+            count: count as usize,
+            component,
+            normalized: a.normalized,
+        })
+    }
+
+    /// One glTF mesh (all its triangle primitives) in its own space.
+    fn mesh(
+        &mut self,
+        m: usize,
+        node: usize,
+        default_slot: u32,
+        needs_default: &mut bool,
+    ) -> Result<MeshData, String> {
+        let mesh = self.root.meshes.get(m).ok_or_else(|| {
+            format!(
+                "nodes[{node}].mesh: mesh {m} does not exist ({} meshes)",
+                self.root.meshes.len()
+            )
+        })?;
+        let mut data = MeshData::default();
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let at = format!("meshes[{m}].primitives[{p}]");
+            if primitive.mode != Checked::Valid(Mode::Triangles) {
+                self.warn(format!("{at}: not triangles; skipped"));
+                continue;
+            }
+            let attribute = |s: Semantic| primitive.attributes.get(&Checked::Valid(s)).copied();
+            let Some(position) = attribute(Semantic::Positions) else {
+                return Err(format!("{at}.attributes.POSITION: missing"));
+            };
+            let positions =
+                self.elements(position, &format!("{at}.attributes.POSITION"), &POSITION)?;
+            let count = positions.count;
+            let base = data.positions.len();
+            for i in 0..count {
+                let v = DVec3::new(
+                    positions.get(i, 0),
+                    positions.get(i, 1),
+                    positions.get(i, 2),
+                );
+                if !v.is_finite() {
+                    return Err(format!(
+                        "{at}.attributes.POSITION: vertex {i} is not finite"
+                    ));
+                }
+                data.positions.push(v);
+            }
+            // Normals and uvs must cover every vertex of the mesh or none.
+            match attribute(Semantic::Normals) {
+                Some(n) if data.normals.len() == base => {
+                    let normals = self.elements(n, &format!("{at}.attributes.NORMAL"), &NORMAL)?;
+                    if normals.count != count {
+                        return Err(format!(
+                            "{at}.attributes.NORMAL: {} normals for {count} positions",
+                            normals.count
+                        ));
+                    }
+                    data.normals.extend((0..count).map(|i| {
+                        DVec3::new(normals.get(i, 0), normals.get(i, 1), normals.get(i, 2))
+                    }));
+                }
+                _ => data.normals.clear(),
+            }
+            match attribute(Semantic::TexCoords(0)) {
+                Some(t) if data.uvs.len() == base => {
+                    let uvs =
+                        self.elements(t, &format!("{at}.attributes.TEXCOORD_0"), &TEXCOORD)?;
+                    if uvs.count != count {
+                        return Err(format!(
+                            "{at}.attributes.TEXCOORD_0: {} coordinates for {count} positions",
+                            uvs.count
+                        ));
+                    }
+                    // glTF's v runs down the image; Prism's runs up.
+                    data.uvs
+                        .extend((0..count).map(|i| DVec2::new(uvs.get(i, 0), 1.0 - uvs.get(i, 1))));
+                }
+                _ => data.uvs.clear(),
+            }
+            let slot = match primitive.material {
+                Some(i) if i.value() < self.root.materials.len() => i.value() as u32,
+                Some(i) => {
+                    return Err(format!(
+                        "{at}.material: material {} does not exist ({} materials)",
+                        i.value(),
+                        self.root.materials.len()
+                    ));
+                }
+                None => {
+                    *needs_default = true;
+                    default_slot
+                }
+            };
+            let corner = |k: usize| -> Result<u32, String> {
+                if (k as u64) >= u64::from(u32::MAX) {
+                    return Err(format!("{at}: more vertices than Prism can index"));
+                }
+                Ok(k as u32)
+            };
+            let base32 = corner(base)?;
+            let mut push = |a: u32, b: u32, c: u32| {
+                data.triangles.push([base32 + a, base32 + b, base32 + c]);
+                data.materials.push(slot);
+            };
+            match primitive.indices {
+                Some(ix) => {
+                    let indices = self.elements(ix, &format!("{at}.indices"), &INDICES)?;
+                    if let Some(bad) =
+                        (0..indices.count).find(|&i| indices.index(i) as usize >= count)
+                    {
+                        return Err(format!(
+                            "{at}.indices: index {} (element {bad}) is past the {count} vertices",
+                            indices.index(bad)
+                        ));
+                    }
+                    for t in 0..indices.count / 3 {
+                        push(
+                            indices.index(3 * t),
+                            indices.index(3 * t + 1),
+                            indices.index(3 * t + 2),
+                        );
+                    }
+                }
+                None => {
+                    corner(base + count)?;
+                    for t in 0..count / 3 {
+                        let t = 3 * t as u32;
+                        push(t, t + 1, t + 2);
+                    }
+                }
+            }
+        }
+        if data.normals.len() != data.positions.len() {
+            data.normals.clear();
+        }
+        if data.uvs.len() != data.positions.len() {
+            data.uvs.clear();
+        }
+        Ok(data)
+    }
+
+    /// A factor the specification bounds to [0, 1]: clamped, with a warning.
+    fn unit_factor(&mut self, value: f32, at: &str) -> Result<f64, String> {
+        let v = f64::from(value);
+        if !v.is_finite() {
+            return Err(format!("{at}: {value} is not a finite number"));
+        }
+        if !(0.0..=1.0).contains(&v) {
+            self.warn(format!("{at}: {value} is outside [0, 1]; clamped"));
+        }
+        Ok(v.clamp(0.0, 1.0))
+    }
+
+    fn material(&mut self, i: usize, res: &mut Resources) -> Result<Material, String> {
+        let m = &self.root.materials[i];
+        let at = format!("materials[{i}]");
+        let pbr = &m.pbr_metallic_roughness;
+        let mut base = [0.0; 3];
+        for (c, value) in base.iter_mut().enumerate() {
+            *value = self.unit_factor(
+                pbr.base_color_factor.0[c],
+                &format!("{at}.pbrMetallicRoughness.baseColorFactor[{c}]"),
+            )?;
+        }
+        let base = DVec3::from_array(base);
+        let metallic = self.unit_factor(
+            pbr.metallic_factor.0,
+            &format!("{at}.pbrMetallicRoughness.metallicFactor"),
+        )?;
+        let roughness = self
+            .unit_factor(
+                pbr.roughness_factor.0,
+                &format!("{at}.pbrMetallicRoughness.roughnessFactor"),
+            )?
+            .max(0.02);
+        let texture = match &pbr.base_color_texture {
+            None => Texture::Solid(base),
+            Some(info) => Texture::Image {
+                image: self.image(
+                    info.index.value(),
+                    &format!("{at}.pbrMetallicRoughness.baseColorTexture"),
+                    res,
+                )?,
+                tint: base,
+            },
+        };
+        if m.normal_texture.is_some()
+            || m.occlusion_texture.is_some()
+            || m.emissive_texture.is_some()
+            || pbr.metallic_roughness_texture.is_some()
+        {
+            self.warn("only base colour textures are used; normal, occlusion, emissive and metallic-roughness maps are ignored".into());
+        }
+        let ext = m.extensions.as_ref();
+        let mut kt = match ext.and_then(|e| e.transmission.as_ref()) {
+            Some(t) => self.unit_factor(
+                t.transmission_factor.0,
+                &format!("{at}.extensions.KHR_materials_transmission.transmissionFactor"),
+            )?,
+            None => 0.0,
+        };
+        let ior = match ext.and_then(|e| e.ior.as_ref()) {
+            Some(ior) => {
+                let v = f64::from(ior.ior.0);
+                if !v.is_finite() || !(1.0..=MAX_VALUE).contains(&v) {
+                    return Err(format!(
+                        "{at}.extensions.KHR_materials_ior.ior: {v} must be a finite number of at least 1"
+                    ));
+                }
+                v
+            }
+            None => 1.5,
+        };
+        let mut kr = metallic;
+        if kr + kt > 1.0 {
+            let s = 1.0 / (kr + kt);
+            kr *= s;
+            kt *= s;
+        }
+        let alpha = roughness * roughness;
+        Ok(Material {
+            texture,
+            ka: 0.1,
+            kd: (1.0 - metallic) * (1.0 - kt),
+            ks: 1.0 - roughness,
+            shininess: (2.0 / (alpha * alpha) - 2.0).clamp(1.0, 10_000.0),
+            kr,
+            kt,
+            ior,
+            fresnel: if kt > 0.0 {
+                Fresnel::Exact
+            } else {
+                Fresnel::Off
+            },
+            highlight: Highlight::Blinn,
+        })
+    }
+
+    /// Texture `t`'s image, decoded once per scene within the budget.
+    fn image(
+        &self,
+        t: usize,
+        at: &str,
+        res: &mut Resources,
+    ) -> Result<Arc<crate::shading::texture::ImageTexture>, String> {
+        let root = self.root;
+        let texture = root.textures.get(t).ok_or_else(|| {
+            format!(
+                "{at}.index: texture {t} does not exist ({} textures)",
+                root.textures.len()
+            )
+        })?;
+        let i = texture.source.value();
+        let image = root.images.get(i).ok_or_else(|| {
+            format!(
+                "textures[{t}].source: image {i} does not exist ({} images)",
+                root.images.len()
+            )
+        })?;
+        let at = format!("images[{i}]");
+        let failed = |e: String| format!("{at}: {e}");
+        let model = res.policy.check(self.file).map_err(failed)?;
+        match (&image.uri, image.buffer_view) {
+            (Some(uri), _) if !uri.starts_with("data:") => {
+                let decoded = urlencoding::decode(uri.strip_prefix("file://").unwrap_or(uri))
+                    .map_err(|e| failed(format!("bad URI: {e}")))?;
+                let file = self
+                    .file
+                    .parent()
+                    .unwrap_or(Path::new("."))
+                    .join(decoded.as_ref());
+                res.texture_file(&file)
+                    .map_err(|e| failed(format!("{}: {e}", file.display())))
+            }
+            (Some(uri), _) => {
+                let dir = self.file.parent().unwrap_or(Path::new("."));
+                let bytes = read_uri(uri, dir, res).map_err(failed)?;
+                res.texture_bytes_of(TextureKey::Embedded(model, i), &bytes)
+                    .map_err(failed)
+            }
+            (None, Some(view)) => {
+                let v = view.value();
+                let view = root
+                    .buffer_views
+                    .get(v)
+                    .ok_or_else(|| failed(format!("buffer view {v} does not exist")))?;
+                let buffer = self
+                    .buffers
+                    .get(view.buffer.value())
+                    .ok_or_else(|| failed(format!("bufferViews[{v}]: buffer does not exist")))?;
+                let start = view.byte_offset.map_or(0, |o| o.0);
+                let bytes = start
+                    .checked_add(view.byte_length.0)
+                    .and_then(|end| buffer.get(start as usize..end as usize))
+                    .ok_or_else(|| {
+                        failed(format!("bufferViews[{v}] lies past the end of its buffer"))
+                    })?;
+                res.texture_bytes_of(TextureKey::Embedded(model, i), bytes)
+                    .map_err(failed)
+            }
+            (None, None) => Err(failed("has neither uri nor bufferView".into())),
+        }
+    }
+
+    /// The first perspective camera, placed by `world`.
+    fn camera(
+        &mut self,
+        node: usize,
+        c: usize,
+        world: &DMat4,
+        found: &mut Option<ModelCamera>,
+    ) -> Result<(), String> {
+        let camera = self.root.cameras.get(c).ok_or_else(|| {
+            format!(
+                "nodes[{node}].camera: camera {c} does not exist ({} cameras)",
+                self.root.cameras.len()
+            )
+        })?;
+        match (&camera.perspective, &camera.orthographic) {
+            (Some(p), _) => {
+                let yfov = f64::from(p.yfov);
+                if !(yfov > 0.0 && yfov < std::f64::consts::PI) {
+                    return Err(format!(
+                        "cameras[{c}].perspective.yfov: {yfov} rad; expected a field of view between 0 and π"
+                    ));
+                }
+                if found.is_none() {
+                    let forward = world.transform_vector3(-DVec3::Z).normalize_or_zero();
+                    let up = world.transform_vector3(DVec3::Y).normalize_or_zero();
+                    if forward == DVec3::ZERO || up == DVec3::ZERO {
+                        return Err(format!("nodes[{node}]: the camera's transform is singular"));
+                    }
+                    *found = Some(ModelCamera {
+                        position: world.transform_point3(DVec3::ZERO),
+                        forward,
+                        up,
+                        yfov,
+                    });
+                }
+            }
+            (None, Some(_)) => self.warn("orthographic cameras are ignored".into()),
+            (None, None) => {
+                return Err(format!(
+                    "cameras[{c}]: neither perspective nor orthographic"
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// A KHR_lights_punctual light, placed by `world`.
+    fn light(&mut self, node: usize, l: usize, world: &DMat4) -> Result<Light, String> {
+        let lights = self
+            .root
+            .extensions
+            .as_ref()
+            .and_then(|e| e.khr_lights_punctual.as_ref())
+            .map_or(&[][..], |k| &k.lights[..]);
+        let light = lights.get(l).ok_or_else(|| {
+            format!(
+                "nodes[{node}].extensions.KHR_lights_punctual.light: light {l} does not exist ({} lights)",
+                lights.len()
+            )
+        })?;
+        let at = format!("extensions.KHR_lights_punctual.lights[{l}]");
+        let mut color = [0.0; 3];
+        for (c, value) in color.iter_mut().enumerate() {
+            *value = self.unit_factor(light.color[c], &format!("{at}.color[{c}]"))?;
+        }
+        let intensity = f64::from(light.intensity);
+        if !intensity.is_finite() || !(0.0..=MAX_VALUE).contains(&intensity) {
+            return Err(format!(
+                "{at}.intensity: {} must be a finite number between 0 and {MAX_VALUE:e}",
+                light.intensity
+            ));
+        }
+        let position = world.transform_point3(DVec3::ZERO);
+        let shape = match light.type_ {
+            Checked::Valid(json::extensions::scene::khr_lights_punctual::Type::Directional) => {
+                LightShape::Directional {
+                    direction: world.transform_vector3(-DVec3::Z).normalize_or_zero(),
+                }
+            }
+            Checked::Valid(json::extensions::scene::khr_lights_punctual::Type::Point) => {
+                LightShape::Point { position }
+            }
+            Checked::Valid(json::extensions::scene::khr_lights_punctual::Type::Spot) => {
+                self.warn("spot lights become point lights (the cone is ignored)".into());
+                LightShape::Point { position }
+            }
+            Checked::Invalid => return Err(format!("{at}.type: unknown light type")),
+        };
+        if matches!(shape, LightShape::Directional { direction } if direction == DVec3::ZERO) {
+            return Err(format!("nodes[{node}]: the light's transform is singular"));
+        }
+        Ok(Light {
+            inverse_square: !matches!(shape, LightShape::Directional { .. }),
+            shape,
+            radiance: DVec3::from_array(color) * intensity,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn graph(children: &[&[usize]]) -> NodeGraph {
+        NodeGraph {
+            children: children.iter().map(|c| c.to_vec()).collect(),
+        }
+    }
+
+    #[test]
+    fn cycles_are_named() {
+        let e = graph(&[&[1], &[2], &[0]]).check_acyclic().unwrap_err();
+        assert!(e.contains("0 → 1 → 2 → 0"), "{e}");
+        assert!(graph(&[&[1, 2], &[2], &[]]).check_acyclic().is_ok());
+    }
+
+    #[test]
+    fn shared_children_are_counted_without_expanding() {
+        // 64 levels, each node pointing twice at the next: 2^64 − 1 paths,
+        // counted (saturating) in linear time.
+        let levels: Vec<Vec<usize>> = (0..64)
+            .map(|i| if i < 63 { vec![i + 1, i + 1] } else { vec![] })
+            .collect();
+        let g = NodeGraph { children: levels };
+        assert_eq!(g.instances(&[0]).unwrap(), u64::MAX);
+        let small = graph(&[&[1, 1], &[2], &[]]);
+        // 0, then 1 twice, each with 2: 1 + 2·2 = 5.
+        assert_eq!(small.instances(&[0]).unwrap(), 5);
+        assert!(small.instances(&[7]).is_err());
+    }
+
+    #[test]
+    fn glb_lengths_are_checked_against_the_bytes() {
+        let mut glb = Vec::new();
+        glb.extend(b"glTF");
+        glb.extend(2u32.to_le_bytes());
+        glb.extend(0u32.to_le_bytes());
+        assert!(split_glb(&glb).unwrap_err().contains("header says 0 bytes"));
+        let json = b"{}  ";
+        let mut good = Vec::new();
+        good.extend(b"glTF");
+        good.extend(2u32.to_le_bytes());
+        good.extend((12 + 8 + json.len() as u32).to_le_bytes());
+        good.extend((json.len() as u32).to_le_bytes());
+        good.extend(b"JSON");
+        good.extend(json);
+        assert_eq!(split_glb(&good).unwrap(), (&json[..], None));
+        // A chunk length of 0xFFFFFFFF is refused, not allocated.
+        let mut huge = good.clone();
+        huge[12..16].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert!(split_glb(&huge).unwrap_err().contains("past the end"));
+    }
 }

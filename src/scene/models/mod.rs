@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{DMat4, DVec3};
 
+use super::resources::Resources;
 use crate::geometry::MeshData;
 use crate::lights::Light;
 use crate::shading::Material;
@@ -77,16 +78,18 @@ impl ModelError {
     }
 }
 
-/// Reads the model at `path`, choosing the format by extension.
-pub fn load_model(path: &Path) -> Result<Model, ModelError> {
+/// Reads the model at `path`, choosing the format by extension; every file
+/// it reads (the model, material libraries, buffers, textures) goes through
+/// `res`'s read policy, textures through its cache.
+pub fn load_model(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
     match ext.as_deref() {
-        Some("obj") => obj::load(path),
-        Some("ply") => ply::load(path),
-        Some("gltf" | "glb") => gltf::load(path),
+        Some("obj") => obj::load(path, res),
+        Some("ply") => ply::load(path, res),
+        Some("gltf" | "glb") => gltf::load(path, res),
         _ => Err(ModelError::new(
             path,
             None,
@@ -106,6 +109,15 @@ impl Model {
             lights: Vec::new(),
             camera: None,
         }
+    }
+}
+
+/// `s` cut to at most `max` characters (with an ellipsis), so that a huge
+/// value in a file is not echoed whole.
+pub(crate) fn cut(s: &str, max: usize) -> String {
+    match s.char_indices().nth(max) {
+        None => s.to_string(),
+        Some((end, _)) => format!("{}…", &s[..end]),
     }
 }
 

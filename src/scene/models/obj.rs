@@ -9,41 +9,98 @@
 //! kt = 1 − d (or max(Tf)), ior = Ni; 5, 7: Fresnel. kr + kt is scaled down
 //! to 1 if it exceeds it.
 
+use std::cell::RefCell;
 use std::path::Path;
 
 use glam::{DVec2, DVec3};
 
-use super::{Model, ModelError};
+use super::{Model, ModelError, cut};
 use crate::geometry::MeshData;
-use crate::shading::texture::ImageTexture;
+use crate::limits::MAX_VALUE;
+use crate::scene::resources::Resources;
 use crate::shading::{Fresnel, Highlight, Material, Texture};
 
-pub fn load(path: &Path) -> Result<Model, ModelError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| ModelError::new(path, None, format!("cannot read: {e}")))?;
-    precheck(&text).map_err(|(line, message)| ModelError::new(path, Some(line), message))?;
+pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
+    let bytes = res
+        .policy
+        .read(path)
+        .map_err(|e| ModelError::new(path, None, e))?;
+    let text = String::from_utf8(bytes)
+        .map_err(|_| ModelError::new(path, None, "not UTF-8 text; expected an OBJ file"))?;
+    let uses =
+        precheck(&text).map_err(|(line, message)| ModelError::new(path, Some(line), message))?;
     let options = tobj::LoadOptions {
         triangulate: true,
         single_index: true,
         ..Default::default()
     };
-    let (models, materials) = tobj::load_obj(path, &options)
-        .map_err(|e| ModelError::new(path, None, format!("cannot load: {e}")))?;
-    let mut warnings = Vec::new();
     let dir = path.parent().unwrap_or(Path::new("."));
+    let mut warnings = Vec::new();
+    // tobj's loader callback cannot return our errors: they wait here.
+    let mtl_problem: RefCell<Option<ModelError>> = RefCell::new(None);
+    let mtl_missing: RefCell<Vec<String>> = RefCell::new(Vec::new());
+    let policy = &res.policy;
+    let load_mtl = |name: &Path| -> tobj::MTLLoadResult {
+        let mtl_path = dir.join(name);
+        if !mtl_path.exists() {
+            mtl_missing.borrow_mut().push(format!(
+                "{}: material library {} not found; using the default material",
+                path.display(),
+                mtl_path.display()
+            ));
+            return Err(tobj::LoadError::OpenFileFailed);
+        }
+        let checked = policy
+            .read(&mtl_path)
+            .map_err(|e| ModelError::new(&mtl_path, None, e))
+            .and_then(|b| {
+                String::from_utf8(b).map_err(|_| {
+                    ModelError::new(&mtl_path, None, "not UTF-8 text; expected an MTL file")
+                })
+            })
+            .and_then(|t| {
+                precheck_mtl(&t).map_err(|(line, m)| ModelError::new(&mtl_path, Some(line), m))?;
+                Ok(t)
+            });
+        match checked {
+            Ok(t) => tobj::load_mtl_buf(&mut t.as_bytes()),
+            Err(e) => {
+                mtl_problem.borrow_mut().get_or_insert(e);
+                Err(tobj::LoadError::ReadError)
+            }
+        }
+    };
+    let loaded = tobj::load_obj_buf(&mut text.as_bytes(), &options, load_mtl);
+    if let Some(e) = mtl_problem.into_inner() {
+        return Err(e);
+    }
+    warnings.extend(mtl_missing.into_inner());
+    let (models, materials) =
+        loaded.map_err(|e| ModelError::new(path, None, format!("cannot load: {e}")))?;
     let mtl = match materials {
         Ok(m) => m,
         Err(e) => {
-            warnings.push(format!(
-                "{}: material library not loaded ({e}); using the default material",
-                path.display()
-            ));
+            if warnings.is_empty() {
+                warnings.push(format!(
+                    "{}: material library not loaded ({e}); using the default material",
+                    path.display()
+                ));
+            }
             Vec::new()
         }
     };
+    for (line, name) in uses {
+        if !mtl.iter().any(|m| m.name == name) {
+            warnings.push(format!(
+                "{}:{line}: usemtl `{}`: no material of that name in the material libraries; using the default material",
+                path.display(),
+                super::cut(&name, 80)
+            ));
+        }
+    }
     let mut materials = mtl
         .iter()
-        .map(|m| material(m, dir, path, &mut warnings))
+        .map(|m| material(m, dir, path, res, &mut warnings))
         .collect::<Result<Vec<_>, _>>()?;
     // Triangles without a material use a plain grey one after the file's.
     let default_slot = materials.len() as u32;
@@ -106,9 +163,11 @@ pub fn load(path: &Path) -> Result<Model, ModelError> {
 
 /// Checks `v` and `f` lines: numbers that parse and are finite, face
 /// indices (1-based, or negative = relative) within the vertices defined so
-/// far. Returns the 1-based line and the problem.
-fn precheck(text: &str) -> Result<(), (usize, String)> {
+/// far. Returns the `usemtl` names with their lines, or the 1-based line and
+/// the problem.
+fn precheck(text: &str) -> Result<Vec<(usize, String)>, (usize, String)> {
     let (mut v, mut vt, mut vn) = (0i64, 0i64, 0i64);
+    let mut uses: Vec<(usize, String)> = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let line_no = i + 1;
         let mut words = line.split_whitespace();
@@ -133,6 +192,12 @@ fn precheck(text: &str) -> Result<(), (usize, String)> {
                     }
                 }
                 v += 1;
+            }
+            Some("usemtl") => {
+                let name = line.trim().split_once(' ').unwrap_or_default().1.trim();
+                if !name.is_empty() && !uses.iter().any(|(_, n)| n == name) {
+                    uses.push((line_no, name.to_string()));
+                }
             }
             Some("vt") => vt += 1,
             Some("vn") => vn += 1,
@@ -175,6 +240,72 @@ fn precheck(text: &str) -> Result<(), (usize, String)> {
             _ => {}
         }
     }
+    Ok(uses)
+}
+
+/// Checks the values of an MTL file that become material coefficients:
+/// colours (Ka, Kd, Ks, Ke, Tf) are three finite numbers in [0, MAX_VALUE],
+/// Ns finite in [0, MAX_VALUE], Ni finite and positive, d and Tr in [0, 1],
+/// illum an integer 0–10. Returns the 1-based line and the problem.
+fn precheck_mtl(text: &str) -> Result<(), (usize, String)> {
+    let number = |word: Option<&str>, key: &str| -> Result<f64, String> {
+        let w = word.ok_or(format!("`{key}` needs a number"))?;
+        match w.parse::<f64>() {
+            Ok(x) if x.is_finite() => Ok(x),
+            _ => Err(format!(
+                "`{key}` value `{}` is not a finite number",
+                cut(w, 40)
+            )),
+        }
+    };
+    for (i, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        let Some(key) = words.next() else { continue };
+        let checked = match key {
+            "Ka" | "Kd" | "Ks" | "Ke" | "Tf" => (0..3)
+                .map(|_| number(words.next(), key))
+                .collect::<Result<Vec<_>, _>>()
+                .and_then(
+                    |c| match c.iter().find(|x| !(0.0..=MAX_VALUE).contains(*x)) {
+                        Some(x) => Err(format!(
+                            "`{key}` component {x} is out of range; expected 0 to {MAX_VALUE:e}"
+                        )),
+                        None => Ok(()),
+                    },
+                ),
+            "Ns" => number(words.next(), key).and_then(|x| {
+                if (0.0..=MAX_VALUE).contains(&x) {
+                    Ok(())
+                } else {
+                    Err(format!(
+                        "`Ns` (shininess) {x} is out of range; expected 0 to {MAX_VALUE:e}"
+                    ))
+                }
+            }),
+            "Ni" => number(words.next(), key).and_then(|x| {
+                if x > 0.0 && x <= MAX_VALUE {
+                    Ok(())
+                } else {
+                    Err(format!(
+                        "`Ni` (index of refraction) {x} must be greater than 0"
+                    ))
+                }
+            }),
+            "d" | "Tr" => number(words.next(), key).and_then(|x| {
+                if (0.0..=1.0).contains(&x) {
+                    Ok(())
+                } else {
+                    Err(format!("`{key}` {x} is out of range; expected 0 to 1"))
+                }
+            }),
+            "illum" => match words.next().map(str::parse::<u32>) {
+                Some(Ok(0..=10)) => Ok(()),
+                _ => Err("`illum` must be an integer from 0 to 10".into()),
+            },
+            _ => Ok(()),
+        };
+        checked.map_err(|m| (i + 1, m))?;
+    }
     Ok(())
 }
 
@@ -183,6 +314,7 @@ fn material(
     m: &tobj::Material,
     dir: &Path,
     obj: &Path,
+    res: &mut Resources,
     warnings: &mut Vec<String>,
 ) -> Result<Material, ModelError> {
     let rgb = |c: Option<[f32; 3]>| c.map(|c| DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64));
@@ -223,7 +355,7 @@ fn material(
         None => Texture::Solid(kd_color),
         Some(file) => {
             let image_path = dir.join(file.trim());
-            let image = ImageTexture::load(&image_path).map_err(|e| {
+            let image = res.texture_file(&image_path).map_err(|e| {
                 ModelError::new(
                     obj,
                     None,
@@ -235,7 +367,7 @@ fn material(
                 )
             })?;
             Texture::Image {
-                image: std::sync::Arc::new(image),
+                image,
                 tint: kd_color,
             }
         }
@@ -272,7 +404,7 @@ mod tests {
     #[test]
     fn precheck_locates_bad_faces_and_numbers() {
         let ok = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf -3 -2 -1\n";
-        assert_eq!(precheck(ok), Ok(()));
+        assert_eq!(precheck(ok), Ok(Vec::new()));
         let past = "v 0 0 0\nv 1 0 0\nv 0 1 0\n# comment\nf 1 2 4\n";
         let (line, msg) = precheck(past).unwrap_err();
         assert_eq!(line, 5);
@@ -281,5 +413,28 @@ mod tests {
         assert_eq!(precheck(nan).unwrap_err().0, 2);
         let normal = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//2 3//1\n";
         assert!(precheck(normal).unwrap_err().1.contains("normal 2"));
+    }
+
+    #[test]
+    fn mtl_values_are_range_checked_with_their_line() {
+        assert_eq!(
+            precheck_mtl("newmtl a\nKd 0.5 0.5 0.5\nNs 10\nNi 1.5\nd 1\nillum 2\n"),
+            Ok(())
+        );
+        for (bad, want) in [
+            ("Ns nan", "not a finite number"),
+            ("Kd nan 0 0", "not a finite number"),
+            ("Kd -5 0 0", "out of range"),
+            ("Ns -1e9", "out of range"),
+            ("Ni 0", "greater than 0"),
+            ("Ni -2", "greater than 0"),
+            ("Kd 1 1", "needs a number"),
+            ("d 2", "0 to 1"),
+            ("illum 99", "0 to 10"),
+        ] {
+            let (line, m) = precheck_mtl(&format!("newmtl a\n{bad}\n")).unwrap_err();
+            assert_eq!(line, 2, "{bad}");
+            assert!(m.contains(want), "{bad}: {m}");
+        }
     }
 }

@@ -9,6 +9,7 @@ use ply_rs_bw::ply::{Property, PropertyAccess};
 
 use super::{Model, ModelError, fan};
 use crate::geometry::MeshData;
+use crate::scene::resources::Resources;
 
 #[derive(Default)]
 struct Vertex {
@@ -81,10 +82,10 @@ impl PropertyAccess for Face {
     }
 }
 
-pub fn load(path: &Path) -> Result<Model, ModelError> {
+pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
     let err = |message: String| ModelError::new(path, None, message);
-    let file = std::fs::File::open(path).map_err(|e| err(format!("cannot read: {e}")))?;
-    let mut reader = std::io::BufReader::new(file);
+    let bytes = res.policy.read(path).map_err(err)?;
+    let mut reader = std::io::Cursor::new(&bytes[..]);
     let vertex_parser = Parser::<Vertex>::new();
     let face_parser = Parser::<Face>::new();
     let header = vertex_parser

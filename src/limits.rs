@@ -1,0 +1,43 @@
+//! Every bound Prism puts on its input, stated once. The scene checks, the
+//! command line, the model loaders and docs/scene-format.md ("Limits") all
+//! use these, so a typo cannot exhaust memory, overflow the arithmetic or run
+//! for ever, and the numbers a user reads are the numbers enforced.
+
+/// Largest image width or height.
+pub const MAX_IMAGE_SIDE: u32 = 32_768;
+/// Most pixels in one image (a 16k × 16k film of f64 RGB is 6 GiB).
+pub const MAX_PIXELS: u64 = 1 << 28;
+/// Most samples per pixel.
+pub const MAX_SPP: u32 = 65_536;
+/// Deepest ray path (each level is a stack frame).
+pub const MAX_DEPTH: u32 = 256;
+/// Most shadow feelers per sphere light and shading point.
+pub const MAX_LIGHT_SAMPLES: u32 = 65_536;
+
+/// Largest |coordinate| of anything placed in the world (after transforms),
+/// and the largest length (radius, size). Squares of lengths then stay far
+/// from f64 overflow (1e60), and bounding boxes fit in f32 (3.4e38).
+pub const MAX_COORDINATE: f64 = 1e30;
+/// Smallest radius, size or scale factor; below it squares underflow.
+pub const MIN_LENGTH: f64 = 1e-30;
+/// Largest value of a colour component, light intensity or material
+/// coefficient: products along a ray path stay finite in f64.
+pub const MAX_VALUE: f64 = 1e15;
+
+/// Most placements (glTF node instances) one model file may expand to.
+pub const MAX_MODEL_PLACEMENTS: u64 = 1 << 20;
+/// Default budget for decoded texture memory per scene, in MiB
+/// (`--texture-memory` raises it).
+pub const DEFAULT_TEXTURE_MIB: u64 = 1024;
+
+/// The limits as the help text and docs state them.
+pub fn describe() -> String {
+    format!(
+        "Limits: image sides 1..={MAX_IMAGE_SIDE} and at most {MAX_PIXELS} pixels; spp 1..={MAX_SPP}; \
+         max_depth 1..={MAX_DEPTH}; sphere-light samples 1..={MAX_LIGHT_SAMPLES}; coordinates within \
+         ±{MAX_COORDINATE:e} and lengths, radii and scale factors in [{MIN_LENGTH:e}, {MAX_COORDINATE:e}] \
+         (after transforms); colours, intensities and coefficients at most {MAX_VALUE:e}; \
+         {MAX_MODEL_PLACEMENTS} placements per model file; {DEFAULT_TEXTURE_MIB} MiB of textures \
+         unless --texture-memory says otherwise."
+    )
+}

@@ -1,0 +1,212 @@
+//! The files a scene reads, and what they cost.
+//!
+//! **What may be read**, after POV-Ray's I/O restrictions: files below the
+//! scene's own folder and below folders the user allows (`--allow-read DIR`,
+//! `PRISM_ALLOW_READ` for farms). Paths are resolved, symlinks included,
+//! before the check, so neither `../..`, an absolute path, a `file://` URI
+//! nor a link inside the folder leads out of it. Only regular files are
+//! read (`/dev/zero` named as a model is refused, not read for ever).
+//!
+//! **Textures** are decoded once per scene however many materials use them,
+//! within a memory budget checked from the image header before decoding.
+
+use std::collections::HashMap;
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use crate::limits;
+use crate::shading::texture::ImageTexture;
+
+/// How a scene is loaded: what it may read and how much texture memory it
+/// may use.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LoadOptions {
+    /// Folders the scene may read besides its own (and their subfolders).
+    pub allow_read: Vec<PathBuf>,
+    /// Budget for decoded textures, in bytes.
+    pub texture_budget: u64,
+}
+
+impl Default for LoadOptions {
+    fn default() -> Self {
+        LoadOptions {
+            allow_read: Vec::new(),
+            texture_budget: limits::DEFAULT_TEXTURE_MIB << 20,
+        }
+    }
+}
+
+/// The folders a scene may read.
+#[derive(Clone, Debug)]
+pub struct ReadPolicy {
+    roots: Vec<PathBuf>,
+}
+
+impl ReadPolicy {
+    /// Reading below `scene_dir` and below each of `allowed`.
+    pub fn new(scene_dir: &Path, allowed: &[PathBuf]) -> ReadPolicy {
+        let roots = std::iter::once(scene_dir)
+            .chain(allowed.iter().map(PathBuf::as_path))
+            .map(|d| d.canonicalize().unwrap_or_else(|_| d.to_path_buf()))
+            .collect();
+        ReadPolicy { roots }
+    }
+
+    /// The resolved path of `path` if the scene may read it; the message
+    /// (to follow the path the caller names) says how to allow it.
+    pub fn check(&self, path: &Path) -> Result<PathBuf, String> {
+        let resolved = path
+            .canonicalize()
+            .map_err(|e| format!("cannot read: {e}"))?;
+        if self.roots.iter().any(|root| resolved.starts_with(root)) {
+            Ok(resolved)
+        } else {
+            Err(format!(
+                "refused: it resolves to {}, outside the folders this scene may read ({}); \
+                 allow its folder with --allow-read DIR (or PRISM_ALLOW_READ)",
+                resolved.display(),
+                self.roots
+                    .iter()
+                    .map(|r| r.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ))
+        }
+    }
+
+    /// The whole of the regular file at `path`, if the scene may read it.
+    pub fn read(&self, path: &Path) -> Result<Vec<u8>, String> {
+        let resolved = self.check(path)?;
+        let cannot = |e: std::io::Error| format!("cannot read: {e}");
+        let meta = std::fs::metadata(&resolved).map_err(cannot)?;
+        if !meta.is_file() {
+            return Err("not a regular file; expected a file to read".into());
+        }
+        std::fs::read(&resolved).map_err(cannot)
+    }
+}
+
+/// What a texture is known by in the cache: its file, or (for images inside
+/// a glTF file) the model file and the image's index.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub enum TextureKey {
+    /// An image file, resolved.
+    File(PathBuf),
+    /// Image `index` of the model file (resolved).
+    Embedded(PathBuf, usize),
+}
+
+/// Files read while building one scene: the policy, and textures decoded
+/// once within a budget.
+#[derive(Debug)]
+pub struct Resources {
+    /// What may be read.
+    pub policy: ReadPolicy,
+    textures: HashMap<TextureKey, Arc<ImageTexture>>,
+    texture_bytes: u64,
+    texture_budget: u64,
+}
+
+impl Resources {
+    /// Resources for a scene in `scene_dir` loaded with `options`.
+    pub fn new(scene_dir: &Path, options: &LoadOptions) -> Resources {
+        Resources {
+            policy: ReadPolicy::new(scene_dir, &options.allow_read),
+            textures: HashMap::new(),
+            texture_bytes: 0,
+            texture_budget: options.texture_budget,
+        }
+    }
+
+    /// Bytes of texture memory in use.
+    pub fn texture_bytes(&self) -> u64 {
+        self.texture_bytes
+    }
+
+    /// Textures decoded so far.
+    pub fn texture_count(&self) -> usize {
+        self.textures.len()
+    }
+
+    /// The image file at `path`, decoded once.
+    pub fn texture_file(&mut self, path: &Path) -> Result<Arc<ImageTexture>, String> {
+        let resolved = self.policy.check(path)?;
+        let key = TextureKey::File(resolved);
+        if let Some(t) = self.textures.get(&key) {
+            return Ok(t.clone());
+        }
+        let bytes = self.policy.read(path)?;
+        self.decode(key, &bytes)
+    }
+
+    /// The image `bytes` known by `key`, decoded once.
+    pub fn texture_bytes_of(
+        &mut self,
+        key: TextureKey,
+        bytes: &[u8],
+    ) -> Result<Arc<ImageTexture>, String> {
+        if let Some(t) = self.textures.get(&key) {
+            return Ok(t.clone());
+        }
+        self.decode(key, bytes)
+    }
+
+    fn decode(&mut self, key: TextureKey, bytes: &[u8]) -> Result<Arc<ImageTexture>, String> {
+        let left = self.texture_budget.saturating_sub(self.texture_bytes);
+        let reader = image::ImageReader::new(Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|e| e.to_string())?;
+        let texture = ImageTexture::decode(reader, left).map_err(|e| match e {
+            crate::shading::texture::DecodeError::OverBudget { needed } => format!(
+                "needs {} MiB decoded, but only {} MiB of the {} MiB texture budget are left; \
+                 raise it with --texture-memory MIB",
+                needed.div_ceil(1 << 20),
+                left >> 20,
+                self.texture_budget >> 20
+            ),
+            crate::shading::texture::DecodeError::Image(m) => m,
+        })?;
+        self.texture_bytes += texture.memory_bytes() as u64;
+        let texture = Arc::new(texture);
+        self.textures.insert(key, texture.clone());
+        Ok(texture)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_only_below_the_allowed_folders() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene_dir = dir.path().join("scene");
+        let other = dir.path().join("other");
+        std::fs::create_dir_all(scene_dir.join("sub")).unwrap();
+        std::fs::create_dir_all(&other).unwrap();
+        std::fs::write(scene_dir.join("sub/a.txt"), b"a").unwrap();
+        std::fs::write(other.join("b.txt"), b"b").unwrap();
+        let policy = ReadPolicy::new(&scene_dir, &[]);
+        assert_eq!(policy.read(&scene_dir.join("sub/a.txt")).unwrap(), b"a");
+        // `..` out of the folder, and a link inside it pointing out.
+        let e = policy
+            .read(&scene_dir.join("sub/../../other/b.txt"))
+            .unwrap_err();
+        assert!(e.contains("--allow-read"), "{e}");
+        #[cfg(unix)]
+        {
+            std::os::unix::fs::symlink(other.join("b.txt"), scene_dir.join("link")).unwrap();
+            assert!(policy.read(&scene_dir.join("link")).is_err());
+        }
+        let allowed = ReadPolicy::new(&scene_dir, std::slice::from_ref(&other));
+        assert_eq!(allowed.read(&other.join("b.txt")).unwrap(), b"b");
+        // Not a regular file.
+        assert!(
+            allowed
+                .read(&other)
+                .unwrap_err()
+                .contains("not a regular file")
+        );
+    }
+}
