@@ -2,18 +2,20 @@
 //! No rendering logic lives here; it calls the `prism` library.
 //!
 //! Exit codes: 0 success, 1 a failure while rendering or writing, 2 bad
-//! input (arguments, scene file, output path), 130 interrupted (Ctrl-C);
-//! on bad input or interruption nothing is written.
+//! input (arguments, scene file, output path), 130 interrupted (SIGINT,
+//! SIGTERM or SIGHUP); on bad input or interruption nothing is written and
+//! no temporary file remains (SIGKILL cannot be caught: its one exception).
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Arc;
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
-use prism::image_io::{OutputFormat, write_film};
+use prism::image_io::{ImageWriteError, check_writable, write_film_unless};
 use prism::render::RenderError;
 use prism::scene::LoadOptions;
 use prism::{RenderObserver, RenderSettings, Scene, SceneError, limits, render};
@@ -180,27 +182,10 @@ fn check(path: &Path, load: &LoadArgs) -> ExitCode {
 }
 
 fn render_command(args: &RenderArgs) -> ExitCode {
-    // Everything the user could have got wrong is checked before rendering.
-    if let Err(e) = OutputFormat::from_path(&args.output) {
+    // Everything the user could have got wrong is checked before rendering,
+    // the output location first (a file is created there and removed).
+    if let Err(e) = check_writable(&args.output) {
         eprintln!("error: {e}");
-        return ExitCode::from(BAD_INPUT);
-    }
-    if let Some(dir) = args
-        .output
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty() && !d.is_dir())
-    {
-        eprintln!(
-            "error: {}: the output directory does not exist",
-            dir.display()
-        );
-        return ExitCode::from(BAD_INPUT);
-    }
-    if args.output.is_dir() {
-        eprintln!(
-            "error: {}: is a directory; expected an image file name",
-            args.output.display()
-        );
         return ExitCode::from(BAD_INPUT);
     }
     let options = match args.load.options() {
@@ -260,10 +245,19 @@ fn render_command(args: &RenderArgs) -> ExitCode {
         interrupted: Arc::new(AtomicBool::new(false)),
     };
     let flag = Arc::clone(&observer.interrupted);
-    // First Ctrl-C: stop at the next row and write nothing; a second one
-    // exits at once.
+    // Whether the image is being written; the handler holds the lock while
+    // it decides, so it never exits between the temporary file's creation
+    // and its rename or removal.
+    let writing = Arc::new(Mutex::new(false));
+    let handler_writing = Arc::clone(&writing);
+    // SIGINT, SIGTERM or SIGHUP: stop at the next row, or abandon the write
+    // (the temporary file is removed), and write nothing. A second signal
+    // while rendering exits at once; while writing, the write is already
+    // stopping.
     let _ = ctrlc::set_handler(move || {
-        if flag.swap(true, Ordering::SeqCst) {
+        let again = flag.swap(true, Ordering::SeqCst);
+        let writing = handler_writing.lock().unwrap_or_else(|p| p.into_inner());
+        if again && !*writing {
             std::process::exit(INTERRUPTED.into());
         }
     });
@@ -280,11 +274,18 @@ fn render_command(args: &RenderArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let bar = observer.bar;
-    bar.finish_and_clear();
-    if let Err(e) = write_film(&output.film, &args.output) {
-        eprintln!("error: {e}");
-        return ExitCode::FAILURE;
+    observer.bar.finish_and_clear();
+    *writing.lock().unwrap_or_else(|p| p.into_inner()) = true;
+    match write_film_unless(&output.film, &args.output, &observer.interrupted) {
+        Ok(()) => {}
+        Err(ImageWriteError::Interrupted { .. }) => {
+            eprintln!("prism: interrupted; nothing was written");
+            return ExitCode::from(INTERRUPTED);
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::FAILURE;
+        }
     }
     if !args.quiet {
         let s = output.stats;

@@ -5,7 +5,9 @@
 
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 
+use image::codecs::pnm::{PnmEncoder, PnmSubtype, SampleEncoding};
 use image::{DynamicImage, ImageFormat, Rgb32FImage, RgbImage};
 use thiserror::Error;
 
@@ -40,6 +42,22 @@ pub enum ImageWriteError {
         path: PathBuf,
         /// The cause.
         source: std::io::Error,
+    },
+    /// The output cannot be written where it is asked for (checked before
+    /// rendering).
+    #[error("{path}: {reason}")]
+    Unwritable {
+        /// The output path.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
+    /// A signal stopped the write; the temporary file is gone and any old
+    /// file at the path is untouched.
+    #[error("{path}: interrupted while writing; the previous file (if any) is untouched")]
+    Interrupted {
+        /// The output path.
+        path: PathBuf,
     },
     /// The encoder failed.
     #[error("{path}: {source}")]
@@ -85,6 +103,17 @@ pub fn to_srgb8(v: f64) -> u8 {
     (linear_to_srgb(v) * 255.0).round() as u8
 }
 
+/// A linear value as a finite f32: radiance beyond f32's range saturates
+/// at its largest value rather than becoming infinity (NaN, which no valid
+/// scene produces, is written as 0, as in the 8-bit formats).
+pub fn to_f32(v: f64) -> f32 {
+    if v.is_nan() {
+        0.0
+    } else {
+        v.clamp(-f64::from(f32::MAX), f64::from(f32::MAX)) as f32
+    }
+}
+
 fn to_image(film: &Film, format: OutputFormat) -> DynamicImage {
     let (w, h) = (film.width(), film.height());
     match format {
@@ -102,7 +131,7 @@ fn to_image(film: &Film, format: OutputFormat) -> DynamicImage {
             let data = film
                 .pixels()
                 .iter()
-                .flat_map(|p| [p.x as f32, p.y as f32, p.z as f32])
+                .flat_map(|p| [to_f32(p.x), to_f32(p.y), to_f32(p.z)])
                 .collect();
             DynamicImage::ImageRgb32F(
                 Rgb32FImage::from_raw(w, h, data).expect("buffer matches the film size"),
@@ -111,19 +140,101 @@ fn to_image(film: &Film, format: OutputFormat) -> DynamicImage {
     }
 }
 
+/// Longest file name most file systems take (NAME_MAX on Linux).
+const MAX_NAME_BYTES: usize = 255;
+
+/// The folder an output goes in.
+fn output_dir(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// Checks, before a render starts, that `path` can be written: a known
+/// extension, a file name the file system takes, an existing folder in which
+/// a file can be created (one is created and removed again), not a folder.
+/// Messages name `path`, never a temporary name.
+pub fn check_writable(path: &Path) -> Result<OutputFormat, ImageWriteError> {
+    let format = OutputFormat::from_path(path)?;
+    let unwritable = |reason: String| ImageWriteError::Unwritable {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let name_len = path.file_name().map_or(0, |n| n.len());
+    if name_len > MAX_NAME_BYTES {
+        return Err(unwritable(format!(
+            "the file name is {name_len} bytes; at most {MAX_NAME_BYTES} are allowed"
+        )));
+    }
+    let dir = output_dir(path);
+    if !dir.is_dir() {
+        return Err(unwritable(format!(
+            "the folder {} does not exist",
+            dir.display()
+        )));
+    }
+    if path.is_dir() {
+        return Err(unwritable(
+            "is a directory; expected an image file name".into(),
+        ));
+    }
+    tempfile::Builder::new()
+        .prefix(".prism-")
+        .suffix(".part")
+        .tempfile_in(dir)
+        .map_err(|e| unwritable(format!("cannot create files in {}: {e}", dir.display())))?;
+    Ok(format)
+}
+
+/// A writer that fails once `stop` is set, so that a signal during a long
+/// write ends it at the next buffer and the temporary file is removed.
+struct Stoppable<'a, W> {
+    inner: W,
+    stop: &'a AtomicBool,
+}
+
+impl<W: Write> Write for Stoppable<'_, W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        if self.stop.load(Ordering::SeqCst) {
+            // Not ErrorKind::Interrupted: write_all retries that for ever.
+            return Err(std::io::Error::other("stopped by a signal"));
+        }
+        self.inner.write(buf)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}
+
+impl<W: std::io::Seek> std::io::Seek for Stoppable<'_, W> {
+    fn seek(&mut self, pos: std::io::SeekFrom) -> std::io::Result<u64> {
+        self.inner.seek(pos)
+    }
+}
+
 /// Writes `film` to `path` in the format its extension names, atomically:
 /// the image is written to a temporary file beside `path` and renamed over
 /// it only once complete.
 pub fn write_film(film: &Film, path: &Path) -> Result<(), ImageWriteError> {
+    write_film_unless(film, path, &AtomicBool::new(false))
+}
+
+/// [`write_film`], abandoned as soon as `stop` is set (by a signal
+/// handler): then the temporary file is removed, any old file at `path` is
+/// untouched, and the result is [`ImageWriteError::Interrupted`].
+pub fn write_film_unless(
+    film: &Film,
+    path: &Path,
+    stop: &AtomicBool,
+) -> Result<(), ImageWriteError> {
     let format = OutputFormat::from_path(path)?;
     let io_error = |source| ImageWriteError::Io {
         path: path.to_path_buf(),
         source,
     };
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
+    let dir = output_dir(path);
     let mut builder = tempfile::Builder::new();
     builder.prefix(".prism-").suffix(".part");
     // Temporary files are private (0600) by default; the image should get
@@ -131,23 +242,39 @@ pub fn write_film(film: &Film, path: &Path) -> Result<(), ImageWriteError> {
     #[cfg(unix)]
     builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
     let temp = builder.tempfile_in(dir).map_err(io_error)?;
-    let image_format = match format {
-        OutputFormat::Png => ImageFormat::Png,
-        OutputFormat::Ppm => ImageFormat::Pnm,
-        OutputFormat::Exr => ImageFormat::OpenExr,
-        OutputFormat::Hdr => ImageFormat::Hdr,
+    let interrupted = || ImageWriteError::Interrupted {
+        path: path.to_path_buf(),
     };
     {
-        let mut writer = BufWriter::new(temp.as_file());
-        to_image(film, format)
-            .write_to(&mut writer, image_format)
-            .map_err(|source| ImageWriteError::Encode {
-                path: path.to_path_buf(),
-                source,
-            })?;
+        let mut writer = BufWriter::new(Stoppable {
+            inner: temp.as_file(),
+            stop,
+        });
+        let image = to_image(film, format);
+        let encoded = match format {
+            // Binary PPM (P6), which every viewer reads; the image crate's
+            // default for .ppm is PAM (P7).
+            OutputFormat::Ppm => image.write_with_encoder(
+                PnmEncoder::new(&mut writer)
+                    .with_subtype(PnmSubtype::Pixmap(SampleEncoding::Binary)),
+            ),
+            OutputFormat::Png => image.write_to(&mut writer, ImageFormat::Png),
+            OutputFormat::Exr => image.write_to(&mut writer, ImageFormat::OpenExr),
+            OutputFormat::Hdr => image.write_to(&mut writer, ImageFormat::Hdr),
+        };
+        if stop.load(Ordering::SeqCst) {
+            return Err(interrupted());
+        }
+        encoded.map_err(|source| ImageWriteError::Encode {
+            path: path.to_path_buf(),
+            source,
+        })?;
         writer.flush().map_err(io_error)?;
     }
     temp.as_file().sync_all().map_err(io_error)?;
+    if stop.load(Ordering::SeqCst) {
+        return Err(interrupted());
+    }
     temp.persist(path).map_err(|e| io_error(e.error))?;
     Ok(())
 }
@@ -207,6 +334,53 @@ mod tests {
             std::fs::write(dir.path().join("plain"), b"").unwrap();
             assert_eq!(mode("out.png"), mode("plain"));
         }
+    }
+
+    #[test]
+    fn ppm_is_binary_p6() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.ppm");
+        write_film(&Film::new(2, 1), &path).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert!(bytes.starts_with(b"P6"), "{:?}", &bytes[..8]);
+        assert!(bytes.ends_with(&[0; 6]));
+    }
+
+    #[test]
+    fn a_stopped_write_leaves_the_old_file_and_no_temporary() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.exr");
+        std::fs::write(&path, b"old").unwrap();
+        let stop = AtomicBool::new(true);
+        assert!(matches!(
+            write_film_unless(&Film::new(64, 64), &path, &stop),
+            Err(ImageWriteError::Interrupted { .. })
+        ));
+        assert_eq!(std::fs::read(&path).unwrap(), b"old");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn unwritable_outputs_are_found_before_rendering() {
+        let dir = tempfile::tempdir().unwrap();
+        let long = dir.path().join(format!("{}.png", "x".repeat(300)));
+        let e = check_writable(&long).unwrap_err().to_string();
+        assert!(e.contains("at most 255"), "{e}");
+        let missing = dir.path().join("no/such/a.png");
+        assert!(
+            check_writable(&missing)
+                .unwrap_err()
+                .to_string()
+                .contains("does not exist")
+        );
+        assert!(check_writable(dir.path()).is_err());
+        assert_eq!(
+            check_writable(&dir.path().join("a.exr")).unwrap(),
+            OutputFormat::Exr
+        );
+        // The probe leaves nothing behind.
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+        assert_eq!(to_f32(1e300), f32::MAX);
     }
 
     #[test]

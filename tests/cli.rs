@@ -315,11 +315,15 @@ fn bad_output_and_missing_scene_are_refused() {
     assert_eq!(o.status.code(), Some(2));
     let o = prism(&["render", "scene.toml", "--width", "100000"], dir.path());
     assert_eq!(o.status.code(), Some(2));
-    assert!(
-        stderr(&o).contains("each side must be between 1 and 32768"),
-        "{}",
-        stderr(&o)
-    );
+    // The limit as stated once (src/limits.rs), enforced by the parser.
+    assert!(stderr(&o).contains("1..=32768"), "{}", stderr(&o));
+    // A file name longer than the file system takes: refused before
+    // rendering, naming the user's path.
+    let long = format!("{}.png", "x".repeat(300));
+    let o = prism(&["render", "scene.toml", "-o", &long], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("at most 255"), "{}", stderr(&o));
+    assert!(stderr(&o).contains(&long[..50]) && !stderr(&o).contains(".part"));
     // Nothing was written by any of these.
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
 }

@@ -407,3 +407,58 @@ fn a_texture_used_by_four_materials_is_decoded_once() {
         .collect();
     assert!(images.iter().all(|i| std::sync::Arc::ptr_eq(i, &images[0])));
 }
+
+/// Sends `signals` (e.g. ["TERM"], ["INT", "INT"]) to a render `delay_ms`
+/// after it starts; whatever the moment, the output is the old file or the
+/// complete new image, and no temporary file remains.
+fn signal_during_render(dir: &Path, delay_ms: u64, signals: &[&str]) {
+    let out = dir.join("out.exr");
+    std::fs::write(&out, b"old").unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_prism"))
+        .args([
+            "render", "-o", "out.exr", "--width", "1600", "--height", "1200", "--spp", "1",
+            "--quiet",
+        ])
+        .current_dir(dir)
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(delay_ms));
+    for s in signals {
+        let _ = Command::new("kill")
+            .args([format!("-{s}"), child.id().to_string()])
+            .status();
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let status = child.wait().unwrap();
+    let bytes = std::fs::read(&out).unwrap();
+    if bytes != b"old" {
+        let img = image::load_from_memory(&bytes).expect("a complete image");
+        assert_eq!((img.width(), img.height()), (1600, 1200));
+    } else {
+        // 130, or killed outright by a signal that came before the handler
+        // was installed.
+        assert!(
+            matches!(status.code(), Some(130) | None),
+            "{signals:?} after {delay_ms} ms: {status:?}"
+        );
+    }
+    let leftovers: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n != "out.exr")
+        .collect();
+    assert!(
+        leftovers.is_empty(),
+        "{signals:?} after {delay_ms} ms left {leftovers:?}"
+    );
+}
+
+#[test]
+fn signals_at_any_moment_leave_the_old_file_or_the_new_one() {
+    let dir = tempfile::tempdir().unwrap();
+    for delay in [0, 20, 60, 120, 200, 300, 450, 600, 800] {
+        for signals in [&["TERM"][..], &["HUP"], &["INT", "INT"]] {
+            signal_during_render(dir.path(), delay, signals);
+        }
+    }
+}
