@@ -24,6 +24,9 @@ pub enum PolygonError {
     /// All vertices on one line (or one point): no area, no normal.
     #[error("the vertices are collinear: the polygon has zero area")]
     ZeroArea,
+    /// A coordinate outside the supported range.
+    #[error("vertex {0} lies outside the supported range (coordinates within ±{max:e})", max = crate::limits::MAX_COORDINATE)]
+    OutOfRange(usize),
     /// A vertex lies off the polygon's plane.
     #[error(
         "vertex {vertex} lies {distance:.3e} off the polygon's plane (tolerance {tolerance:.3e})"
@@ -73,6 +76,49 @@ pub fn newell_normal(vertices: &[DVec3]) -> DVec3 {
         );
     }
     n
+}
+
+/// The normal of the largest triangle of vertices found in linear time:
+/// from vertex 0, the vertex b farthest from it, then the vertex c farthest
+/// from the line through both; (b − a) × (c − a). Unlike the Newell sum it
+/// does not cancel for self-intersecting outlines (a bow-tie's two lobes
+/// have opposite signed areas), so it gives the plane of any outline that
+/// is not collinear.
+pub fn widest_triangle_normal(vertices: &[DVec3]) -> DVec3 {
+    let a = vertices[0];
+    let b = vertices
+        .iter()
+        .copied()
+        .max_by(|p, q| {
+            (*p - a)
+                .length_squared()
+                .total_cmp(&(*q - a).length_squared())
+        })
+        .unwrap_or(a);
+    let ab = b - a;
+    vertices
+        .iter()
+        .map(|&c| ab.cross(c - a))
+        .max_by(|m, n| m.length_squared().total_cmp(&n.length_squared()))
+        .unwrap_or(DVec3::ZERO)
+}
+
+/// The polygon's plane normal (unnormalised): the Newell sum, which is
+/// exact and orientation-true for simple outlines; but where the net signed
+/// area it measures is small beside the widest vertex triangle (a
+/// self-intersecting outline whose lobes nearly cancel), its direction is
+/// mostly rounding, and the triangle's normal is used, turned to agree with
+/// the Newell sum's side where that has one.
+pub fn robust_normal(vertices: &[DVec3]) -> DVec3 {
+    let newell = newell_normal(vertices);
+    let triangle = widest_triangle_normal(vertices);
+    if newell.length() >= 0.25 * triangle.length() {
+        newell
+    } else if newell.dot(triangle) < 0.0 {
+        -triangle
+    } else {
+        triangle
+    }
 }
 
 /// The principal axis: the index of the normal's largest |component|.
@@ -144,6 +190,12 @@ impl Polygon {
         if let Some(i) = vertices.iter().position(|v| !v.is_finite()) {
             return Err(PolygonError::NotFinite(i));
         }
+        if let Some(i) = vertices
+            .iter()
+            .position(|v| v.abs().max_element() > crate::limits::MAX_COORDINATE)
+        {
+            return Err(PolygonError::OutOfRange(i));
+        }
         let size = Aabb::from_points(vertices.iter().copied()).diagonal();
         // Neighbours that coincide make a zero-length edge: a vertex typed
         // twice, or the first vertex repeated at the end to "close" the
@@ -155,11 +207,11 @@ impl Polygon {
                 return Err(PolygonError::RepeatedVertex(i.min(j), i.max(j)));
             }
         }
-        let newell = newell_normal(&vertices);
-        if newell.length() <= 1e-12 * size * size {
+        let n = robust_normal(&vertices);
+        if n.length() <= 1e-12 * size * size {
             return Err(PolygonError::ZeroArea);
         }
-        let normal = newell.normalize();
+        let normal = n.normalize();
         let centroid = vertices.iter().sum::<DVec3>() / vertices.len() as f64;
         let plane = Plane::through(centroid, normal);
         let tolerance = PLANARITY_TOLERANCE * size;
@@ -434,6 +486,43 @@ mod tests {
         assert_eq!(
             Polygon::new(vec![v(0., 0., 0.), v(f64::NAN, 0., 0.), v(0., 1., 0.)]),
             Err(PolygonError::NotFinite(1))
+        );
+    }
+
+    #[test]
+    fn self_intersecting_outlines_are_accepted_with_even_odd_coverage() {
+        let v = |x: f64, y: f64| DVec3::new(x, y, 0.0);
+        // A symmetric bow-tie: the Newell sum is exactly zero.
+        let bow = vec![v(-1., -1.), v(1., 1.), v(1., -1.), v(-1., 1.)];
+        assert_eq!(newell_normal(&bow), DVec3::ZERO);
+        let p = Polygon::new(bow).unwrap();
+        assert_eq!(p.plane.normal.abs(), DVec3::Z);
+        let hits = |p: &Polygon, x: f64, y: f64| {
+            let n = p.plane.normal;
+            let ray = Ray::new(DVec3::new(x, y, 0.0) + n * 5.0, -n);
+            p.intersect(&ray, 0.0, f64::INFINITY).is_some()
+        };
+        // Both lobes (left and right) are covered; above and below are not.
+        assert!(hits(&p, 0.8, 0.0) && hits(&p, -0.8, 0.0));
+        assert!(!hits(&p, 0.0, 0.8) && !hits(&p, 0.0, -0.8));
+        // A nearly cancelling one (lobes of area 2 and 2.02), tilted 75°:
+        // its plane is found, not refused as non-planar.
+        let tilt = glam::DQuat::from_rotation_x(75f64.to_radians());
+        let lopsided: Vec<DVec3> = [v(-1., -1.), v(1.01, 1.), v(1.01, -1.), v(-1., 1.)]
+            .iter()
+            .map(|&p| tilt * p)
+            .collect();
+        let q = Polygon::new(lopsided).unwrap();
+        assert!((q.plane.normal.abs() - (tilt * DVec3::Z).abs()).length() < 1e-12);
+        // Collinear outlines are still refused, by their real defect.
+        assert_eq!(
+            Polygon::new(vec![v(0., 0.), v(1., 0.), v(3., 0.), v(2., 0.)]),
+            Err(PolygonError::ZeroArea)
+        );
+        // Too large to compute with: said so, not "vertices coincide".
+        assert_eq!(
+            Polygon::new(vec![v(0., 0.), v(2e300, 0.), v(0., 1.)]),
+            Err(PolygonError::OutOfRange(1))
         );
     }
 
