@@ -171,7 +171,7 @@ fn negative_radius_is_refused() {
     assert_rejected(
         &GOOD.replace("radius = 1", "radius = -1"),
         "21:10",
-        "`radius` must be greater than 0, got -1",
+        "`radius` must be between 1e-30 and 1e30 (the supported range of lengths), got -1",
     );
 }
 
@@ -194,7 +194,7 @@ fn coefficients_that_create_light_are_refused() {
     assert_rejected(
         &GOOD.replace("color = [1, 0, 0]", "kd = -0.5"),
         "12:6",
-        "`kd` must be at least 0",
+        "`kd` must be between 0 and 1e15, got -0.5",
     );
 }
 

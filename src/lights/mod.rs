@@ -127,7 +127,9 @@ impl Light {
         let d2 = to_light.length_squared();
         let distance = d2.sqrt();
         LightSample {
-            direction: to_light / distance,
+            // A point at the light itself has no direction towards it: the
+            // zero vector, which the shading skips (N·L = 0), not NaN.
+            direction: to_light.try_normalize().unwrap_or(DVec3::ZERO),
             distance,
             falloff: self.falloff(d2),
         }
@@ -136,7 +138,9 @@ impl Light {
     #[inline]
     fn falloff(&self, distance_squared: f64) -> f64 {
         if self.inverse_square {
-            1.0 / distance_squared
+            // Bounded as the point nears the light: 1/d² stays finite.
+            const NEAREST: f64 = crate::limits::MIN_LENGTH * crate::limits::MIN_LENGTH;
+            1.0 / distance_squared.max(NEAREST)
         } else {
             1.0
         }

@@ -31,6 +31,19 @@ impl Transform {
             return None;
         }
         let to_object = to_world.inverse();
+        // Scale factors within the supported range along every axis, both
+        // ways (a map that stretches by 1e300 along one axis and shrinks by
+        // 1e-300 along another has determinant 1 but is no usable map).
+        use crate::limits::{MAX_COORDINATE, MIN_LENGTH};
+        let columns = |m: DMat3| [m.x_axis.length(), m.y_axis.length(), m.z_axis.length()];
+        if columns(m).iter().any(|&l| l > MAX_COORDINATE)
+            || columns(to_object.matrix3)
+                .iter()
+                .any(|&l| l > 1.0 / MIN_LENGTH)
+            || to_world.translation.abs().max_element() > MAX_COORDINATE
+        {
+            return None;
+        }
         Some(Transform {
             to_world,
             to_object,

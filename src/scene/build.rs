@@ -171,10 +171,36 @@ impl Check<'_, '_> {
         })
     }
 
+    /// A point in the world: three finite numbers within ±MAX_COORDINATE.
+    fn point(&mut self, v: &Triple, what: &str) -> DVec3 {
+        let p = self.vector(v, what);
+        if p.abs().max_element() > limits::MAX_COORDINATE {
+            self.error(
+                v.span(),
+                format!(
+                    "`{what}` must lie within ±{:e} (the supported range), got {:?}",
+                    limits::MAX_COORDINATE,
+                    v.get_ref()
+                ),
+            );
+            return DVec3::ZERO;
+        }
+        p
+    }
+
     /// A colour: three finite, non-negative numbers.
     fn color(&mut self, v: &Triple, what: &str) -> DVec3 {
         let c = self.vector(v, what);
-        if c.min_element() < 0.0 {
+        if c.max_element() > limits::MAX_VALUE {
+            self.error(
+                v.span(),
+                format!(
+                    "`{what}` components must be at most {:e}, got {:?}",
+                    limits::MAX_VALUE,
+                    v.get_ref()
+                ),
+            );
+        } else if c.min_element() < 0.0 {
             self.error(
                 v.span(),
                 format!(
@@ -202,7 +228,10 @@ impl Check<'_, '_> {
                 format!("`{what}` must be a finite number, got {x}"),
             );
         } else if !valid.0(x) {
-            self.error(v.span(), format!("`{what}` must be {}, got {x}", valid.1));
+            self.error(
+                v.span(),
+                format!("`{what}` must be {}, got {}", valid.1, readable(x)),
+            );
         }
         x
     }
@@ -247,8 +276,8 @@ impl Check<'_, '_> {
 
     fn camera(&mut self, desc: &Spanned<CameraDesc>) -> Option<Camera> {
         let d = desc.get_ref();
-        let position = self.vector(&d.position, "position");
-        let look_at = self.vector(&d.look_at, "look_at");
+        let position = self.point(&d.position, "position");
+        let look_at = self.point(&d.look_at, "look_at");
         let up = d.up.as_ref().map_or(DVec3::Y, |u| self.direction(u, "up"));
         let projection = match d.kind {
             CameraKind::Perspective => {
@@ -285,7 +314,7 @@ impl Check<'_, '_> {
                         );
                     }
                 }
-                let view_height = self.number(&d.view_height, 2.0, "view_height", POSITIVE);
+                let view_height = self.number(&d.view_height, 2.0, "view_height", LENGTH);
                 Projection::Orthographic { view_height }
             }
         };
@@ -317,7 +346,7 @@ impl Check<'_, '_> {
             (Some(ch), None) => {
                 let ch = ch.get_ref();
                 let odd = self.color(&ch.color, "checker.color");
-                let size = self.number(&ch.size, 1.0, "checker.size", POSITIVE);
+                let size = self.number(&ch.size, 1.0, "checker.size", LENGTH);
                 match ch.mapping {
                     Some(CheckerMapping::Uv) => Texture::UvChecker {
                         even: color,
@@ -345,8 +374,8 @@ impl Check<'_, '_> {
                 }
             }
         };
-        let kr = self.number(&d.kr, 0.0, "kr", NON_NEGATIVE);
-        let kt = self.number(&d.kt, 0.0, "kt", NON_NEGATIVE);
+        let kr = self.number(&d.kr, 0.0, "kr", VALUE);
+        let kt = self.number(&d.kt, 0.0, "kt", VALUE);
         if kr + kt > 1.0 + 1e-9 {
             let span =
                 d.kt.as_ref()
@@ -362,13 +391,13 @@ impl Check<'_, '_> {
         }
         Material {
             texture,
-            ka: self.number(&d.ka, 0.1, "ka", NON_NEGATIVE),
-            kd: self.number(&d.kd, 0.8, "kd", NON_NEGATIVE),
-            ks: self.number(&d.ks, 0.0, "ks", NON_NEGATIVE),
-            shininess: self.number(&d.shininess, 32.0, "shininess", NON_NEGATIVE),
+            ka: self.number(&d.ka, 0.1, "ka", VALUE),
+            kd: self.number(&d.kd, 0.8, "kd", VALUE),
+            ks: self.number(&d.ks, 0.0, "ks", VALUE),
+            shininess: self.number(&d.shininess, 32.0, "shininess", VALUE),
             kr,
             kt,
-            ior: self.number(&d.ior, 1.0, "ior", POSITIVE),
+            ior: self.number(&d.ior, 1.0, "ior", IOR),
             fresnel: match d.fresnel {
                 None | Some(FresnelDesc::Off) => Fresnel::Off,
                 Some(FresnelDesc::Exact) => Fresnel::Exact,
@@ -388,7 +417,7 @@ impl Check<'_, '_> {
             .color
             .as_ref()
             .map_or(DVec3::ONE, |c| self.color(c, "color"))
-            * self.number(&d.intensity, 1.0, "intensity", NON_NEGATIVE);
+            * self.number(&d.intensity, 1.0, "intensity", VALUE);
         let label = format!("light `{name}`");
         let needs = |this: &mut Self, field: &Option<Triple>, key: &str| {
             if field.is_none() {
@@ -410,13 +439,13 @@ impl Check<'_, '_> {
             LightKind::Point | LightKind::Sphere => {
                 needs(self, &d.position, "position");
                 reject(self, d.direction.as_ref().map(Spanned::span), "direction");
-                let position = d.position.as_ref().map(|p| self.vector(p, "position"))?;
+                let position = d.position.as_ref().map(|p| self.point(p, "position"))?;
                 if kind == LightKind::Point {
                     reject(self, d.radius.as_ref().map(Spanned::span), "radius");
                     reject(self, d.samples.as_ref().map(Spanned::span), "samples");
                     LightShape::Point { position }
                 } else {
-                    let radius = self.number(&d.radius, 1.0, "radius", NON_NEGATIVE);
+                    let radius = self.number(&d.radius, 1.0, "radius", LENGTH_OR_ZERO);
                     let samples = self.count(&d.samples, 16, "samples", limits::MAX_LIGHT_SAMPLES);
                     if radius == 0.0 {
                         LightShape::Point { position }
@@ -481,13 +510,39 @@ impl Check<'_, '_> {
             }
         };
         let transform = self.transform(d.transform.as_deref().unwrap_or_default(), &label);
+        let errors_before = self.diags.len();
         let Some(shape) = self.analytic_shape(kind, d, desc, &label, transform) else {
             return Vec::new();
         };
+        // A value already refused is not reported again as out of range.
+        if self.diags.len() == errors_before && !self.within_range(&shape, desc, &label) {
+            return Vec::new();
+        }
         material
             .map(|material| Primitive { shape, material })
             .into_iter()
             .collect()
+    }
+
+    /// Whether the placed shape lies within the supported range (its
+    /// bounds, or a plane's distance from the origin); reported if not.
+    fn within_range(&mut self, shape: &Shape, desc: &Spanned<ObjectDesc>, label: &str) -> bool {
+        let reach = match (shape, shape.bounds()) {
+            (Shape::Plane(p), _) => p.distance.abs(),
+            (_, Some(b)) => b.min.abs().max(b.max.abs()).max_element(),
+            (_, None) => 0.0,
+        };
+        if reach.is_finite() && reach <= limits::MAX_COORDINATE {
+            return true;
+        }
+        self.error(
+            desc.span(),
+            format!(
+                "{label}: after its transform it reaches {reach:e}; the supported range is \
+                 coordinates within ±1e30"
+            ),
+        );
+        false
     }
 
     /// Reports the keys given that belong to other kinds of object.
@@ -616,8 +671,8 @@ impl Check<'_, '_> {
                 let center = d
                     .center
                     .as_ref()
-                    .map_or(DVec3::ZERO, |c| self.vector(c, "center"));
-                let radius = self.number(&d.radius, 1.0, "radius", POSITIVE);
+                    .map_or(DVec3::ZERO, |c| self.point(c, "center"));
+                let radius = self.number(&d.radius, 1.0, "radius", LENGTH);
                 let transform = transform?;
                 match transform.uniform_scale() {
                     Some(s) => Shape::Sphere(Sphere {
@@ -650,8 +705,10 @@ impl Check<'_, '_> {
                         );
                         normal * *dist.get_ref()
                     }
-                    (Some(_), None) => normal * self.number(&d.distance, 0.0, "distance", ANY),
-                    (None, Some(p)) => self.vector(p, "point"),
+                    (Some(_), None) => {
+                        normal * self.number(&d.distance, 0.0, "distance", COORDINATE)
+                    }
+                    (None, Some(p)) => self.point(p, "point"),
                     (None, None) => DVec3::ZERO,
                 };
                 let transform = transform?;
@@ -816,7 +873,8 @@ impl Check<'_, '_> {
                         op.span(),
                         format!(
                             "{label}: invalid transform step; expected finite values, a non-zero rotation axis, \
-                             a non-zero scale and a matrix whose last row is [0, 0, 0, 1]"
+                             scale factors between 1e-30 and 1e30, translations within ±1e30 \
+                             and a matrix whose last row is [0, 0, 0, 1]"
                         ),
                     );
                 }
@@ -826,16 +884,55 @@ impl Check<'_, '_> {
             return None;
         }
         Transform::from_affine(m).or_else(|| {
-            self.error(ops[0].span(), format!("{label}: the transform is singular"));
+            self.error(
+                ops[0].span(),
+                format!(
+                    "{label}: the steps together are singular or out of range (they must scale by \
+                     1e-30 to 1e30 along every axis and translate within ±1e30)"
+                ),
+            );
             None
         })
     }
 }
 
-const ANY: (fn(f64) -> bool, &str) = (|_| true, "a number");
-const POSITIVE: (fn(f64) -> bool, &str) = (|x| x > 0.0, "greater than 0");
-const NON_NEGATIVE: (fn(f64) -> bool, &str) = (|x| x >= 0.0, "at least 0");
+/// A length (radius, size): within the supported range.
+const LENGTH: (fn(f64) -> bool, &str) = (
+    |x| (limits::MIN_LENGTH..=limits::MAX_COORDINATE).contains(&x),
+    "between 1e-30 and 1e30 (the supported range of lengths)",
+);
+/// A light radius: 0 (a point) or a length.
+const LENGTH_OR_ZERO: (fn(f64) -> bool, &str) = (
+    |x| x == 0.0 || LENGTH.0(x),
+    "0 or between 1e-30 and 1e30 (the supported range of lengths)",
+);
+/// A signed distance from the origin.
+const COORDINATE: (fn(f64) -> bool, &str) = (
+    |x| x.abs() <= limits::MAX_COORDINATE,
+    "within ±1e30 (the supported range)",
+);
+/// A coefficient or intensity.
+const VALUE: (fn(f64) -> bool, &str) = (
+    |x| (0.0..=limits::MAX_VALUE).contains(&x),
+    "between 0 and 1e15",
+);
+/// An index of refraction.
+const IOR: (fn(f64) -> bool, &str) = (
+    |x| x > 0.0 && x <= limits::MAX_VALUE,
+    "greater than 0 and at most 1e15",
+);
 const UNIT_INTERVAL: (fn(f64) -> bool, &str) = (|x| (0.0..=1.0).contains(&x), "between 0 and 1");
+
+/// A number for messages in the form a person reads: plain for everyday
+/// magnitudes, with an exponent for very large or small ones (1e39, not
+/// forty digits).
+fn readable(x: f64) -> String {
+    if x == 0.0 || (1e-4..1e9).contains(&x.abs()) {
+        x.to_string()
+    } else {
+        format!("{x:e}")
+    }
+}
 
 /// A number for messages: at most 6 decimals, no float noise (1.3, not 1.2999999999999998).
 fn short(x: f64) -> String {

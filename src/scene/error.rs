@@ -85,6 +85,11 @@ impl<'a> Diagnostics<'a> {
         self.found.is_empty()
     }
 
+    /// How many problems were recorded.
+    pub fn len(&self) -> usize {
+        self.found.len()
+    }
+
     /// The problems sorted by position, with line and column.
     pub fn into_diagnostics(mut self) -> Vec<Diagnostic> {
         self.found.sort_by_key(|(span, _)| span.start);
