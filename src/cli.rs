@@ -12,6 +12,7 @@ use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -163,17 +164,38 @@ fn check(path: &Path, load: &LoadArgs) -> ExitCode {
             return ExitCode::from(BAD_INPUT);
         }
     };
+    let start = Instant::now();
     match Scene::load_with(path, &options) {
         Ok(scene) => {
+            let total = start.elapsed();
             for w in &scene.warnings {
                 eprintln!("warning: {w}");
             }
+            let c = scene.census();
+            let inv = &scene.inventory;
             println!(
-                "{}: ok ({} objects, {} lights, {} materials)",
+                "{}: ok ({} objects, {} lights, {} materials)\n\
+                 primitives: {} spheres, {} planes, {} polygons, {} mesh instances\n\
+                 meshes: {} stored ({} triangles), {} triangles placed\n\
+                 textures: {} ({:.1} MiB)\n\
+                 estimated memory: {:.1} MiB\n\
+                 load {:.2} s, build {:.2} s",
                 path.display(),
                 scene.aggregate.primitives().len(),
                 scene.lights.len(),
-                scene.materials.len()
+                scene.materials.len(),
+                c.spheres,
+                c.planes,
+                c.polygons,
+                c.mesh_instances,
+                c.meshes,
+                c.triangles,
+                c.placed_triangles,
+                inv.textures,
+                inv.texture_bytes as f64 / (1 << 20) as f64,
+                c.memory_bytes as f64 / (1 << 20) as f64,
+                total.saturating_sub(inv.build_time).as_secs_f64(),
+                inv.build_time.as_secs_f64(),
             );
             ExitCode::SUCCESS
         }
@@ -195,6 +217,7 @@ fn render_command(args: &RenderArgs) -> ExitCode {
             return ExitCode::from(BAD_INPUT);
         }
     };
+    let load_start = Instant::now();
     let scene = match &args.scene {
         Some(path) => match Scene::load_with(path, &options) {
             Ok(s) => s,
@@ -202,6 +225,7 @@ fn render_command(args: &RenderArgs) -> ExitCode {
         },
         None => Scene::demo(),
     };
+    let load_time = load_start.elapsed();
     if !args.quiet {
         for w in &scene.warnings {
             eprintln!("warning: {w}");
@@ -276,6 +300,7 @@ fn render_command(args: &RenderArgs) -> ExitCode {
     };
     observer.bar.finish_and_clear();
     *writing.lock().unwrap_or_else(|p| p.into_inner()) = true;
+    let write_start = Instant::now();
     match write_film_unless(&output.film, &args.output, &observer.interrupted) {
         Ok(()) => {}
         Err(ImageWriteError::Interrupted { .. }) => {
@@ -290,12 +315,17 @@ fn render_command(args: &RenderArgs) -> ExitCode {
     if !args.quiet {
         let s = output.stats;
         eprintln!(
-            "prism: {}x{} {} spp, {} threads, {:.2} s; rays: {} camera, {} reflection, {} refraction, {} shadow; {:.2} Mrays/s -> {}",
+            "prism: {}x{} {} spp, {} threads; load {:.2} s, build {:.2} s, render {:.2} s, write {:.2} s; rays: {} camera, {} reflection, {} refraction, {} shadow; {:.2} Mrays/s -> {}",
             settings.width,
             settings.height,
             settings.spp,
             threads,
+            load_time
+                .saturating_sub(scene.inventory.build_time)
+                .as_secs_f64(),
+            scene.inventory.build_time.as_secs_f64(),
             output.elapsed.as_secs_f64(),
+            write_start.elapsed().as_secs_f64(),
             s.camera,
             s.reflection,
             s.refraction,

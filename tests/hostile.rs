@@ -462,3 +462,75 @@ fn signals_at_any_moment_leave_the_old_file_or_the_new_one() {
         }
     }
 }
+
+#[test]
+fn messages_say_what_is_wrong_in_a_readable_length() {
+    let dir = tempfile::tempdir().unwrap();
+    // A model named where the scene belongs.
+    std::fs::copy(
+        models_dir().join("icosphere.ply"),
+        dir.path().join("ball.ply"),
+    )
+    .unwrap();
+    let o = prism(dir.path(), &["render", "ball.ply", "-o", "out.png"]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = stderr(&o);
+    assert!(
+        err.contains("ball.ply:1:1: error: this is a .ply model, not a scene"),
+        "{err}"
+    );
+    assert!(
+        err.contains("type = \"mesh\"") && err.lines().count() == 1,
+        "{err}"
+    );
+    // A duplicate key is named.
+    std::fs::write(
+        dir.path().join("scene.toml"),
+        "[camera]\nposition = [0, 0, 5]\nposition = [0, 0, 6]\n",
+    )
+    .unwrap();
+    let err = assert_refused(
+        dir.path(),
+        &[],
+        &["scene.toml:3:1:", "duplicate key `position`"],
+    );
+    assert_eq!(err.lines().count(), 1, "{err}");
+    // A huge value is not echoed whole.
+    let long = "x".repeat(1_000_000);
+    std::fs::write(
+        dir.path().join("scene.toml"),
+        format!("[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\ntype = \"{long}\"\n"),
+    )
+    .unwrap();
+    assert_refused(dir.path(), &[], &["scene.toml:4:", "(cut)"]);
+    // A model that fails to load is reported, not a missing camera it may
+    // have brought.
+    std::fs::write(dir.path().join("bad.gltf"), "{ not json").unwrap();
+    std::fs::write(
+        dir.path().join("scene.toml"),
+        "[[objects]]\ntype = \"mesh\"\nfile = \"bad.gltf\"\n",
+    )
+    .unwrap();
+    let err = assert_refused(dir.path(), &[], &["bad.gltf", "not valid glTF JSON"]);
+    assert!(!err.contains("missing [camera]"), "{err}");
+}
+
+#[test]
+fn check_reports_what_the_scene_holds() {
+    let o = prism(
+        Path::new(env!("CARGO_MANIFEST_DIR")),
+        &["check", "scenes/models.toml"],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    for want in [
+        "5 mesh instances",
+        "3 stored (1294 triangles), 3854 triangles placed",
+        "textures: 1",
+        "estimated memory:",
+        "load ",
+        "build ",
+    ] {
+        assert!(out.contains(want), "want {want:?} in:\n{out}");
+    }
+}

@@ -59,6 +59,7 @@ pub fn build(
         model_lights: Vec::new(),
         model_camera: None,
         default_material: None,
+        model_failed: false,
         warnings: Vec::new(),
     };
     let settings = c.settings(&file.render);
@@ -95,8 +96,13 @@ pub fn build(
         .flat_map(|(i, o)| c.object(i, o, &material_index, &file.unparsed))
         .collect();
     let camera = camera.or(c.model_camera);
-    // A [camera] that failed to parse is already reported.
-    if camera.is_none() && file.camera.is_none() && !file.unparsed.contains("camera") {
+    // A [camera] that failed to parse is already reported; a model that
+    // failed to load may have been the one to bring the camera.
+    if camera.is_none()
+        && file.camera.is_none()
+        && !file.unparsed.contains("camera")
+        && !c.model_failed
+    {
         c.diags.error(
             0..0,
             "missing [camera] section (position and look_at are required), and no model file brings a camera",
@@ -107,9 +113,18 @@ pub fn build(
     if !c.diags.is_empty() {
         return None;
     }
+    let camera = camera?;
+    let build_start = std::time::Instant::now();
+    let aggregate = Aggregate::new(primitives);
+    let inventory = super::Inventory {
+        build_time: build_start.elapsed(),
+        textures: c.resources.texture_count(),
+        texture_bytes: c.resources.texture_bytes(),
+    };
     Some(Scene {
-        camera: camera?,
-        aggregate: Aggregate::new(primitives),
+        camera,
+        aggregate,
+        inventory,
         materials: c.materials,
         warnings: c.warnings,
         lights,
@@ -136,6 +151,8 @@ struct Check<'d, 's> {
     model_camera: Option<Camera>,
     /// Index of the grey material for models that bring none.
     default_material: Option<u32>,
+    /// A model file could not be loaded (already reported).
+    model_failed: bool,
     warnings: Vec<String>,
 }
 
@@ -750,6 +767,7 @@ impl Check<'_, '_> {
         let model = match load_model(&path, &mut self.resources) {
             Ok(m) => m,
             Err(e) => {
+                self.model_failed = true;
                 self.error(file.span(), format!("{label}: {e}"));
                 return None;
             }

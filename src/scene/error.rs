@@ -75,9 +75,26 @@ impl<'a> Diagnostics<'a> {
         }
     }
 
-    /// Records a problem at `span`.
+    /// Records a problem at `span`. Messages are cut to a readable length:
+    /// a value of 200 MB in a file is not echoed whole.
     pub fn error(&mut self, span: Range<usize>, message: impl Into<String>) {
-        self.found.push((span, message.into()));
+        const MAX_CHARS: usize = 400;
+        let mut message = message.into();
+        if let Some((end, _)) = message.char_indices().nth(MAX_CHARS) {
+            message.truncate(end);
+            message.push_str("… (cut)");
+        }
+        self.found.push((span, message));
+    }
+
+    /// The source text at `span`, cut to `max` characters (for naming a key
+    /// an error points at).
+    pub fn text_at(&self, span: Range<usize>, max: usize) -> String {
+        let text = self.source.get(span).unwrap_or_default();
+        match text.char_indices().nth(max) {
+            None => text.to_string(),
+            Some((end, _)) => format!("{}…", &text[..end]),
+        }
     }
 
     /// Whether any problem was recorded.

@@ -16,7 +16,16 @@ pub fn parse(source: &str, diags: &mut Diagnostics) -> Option<SceneFile> {
     let (doc, errors) = DeTable::parse_recoverable(source);
     if !errors.is_empty() {
         for e in errors {
-            diags.error(e.span().unwrap_or(0..0), e.message().to_string());
+            let span = e.span().unwrap_or(0..0);
+            let message = match e.message() {
+                // The parser does not say which key; the span points at it.
+                "duplicate key" => format!(
+                    "duplicate key `{}`: each key may appear once in a table",
+                    diags.text_at(span.clone(), 60).trim()
+                ),
+                m => m.to_string(),
+            };
+            diags.error(span, message);
         }
         return None;
     }

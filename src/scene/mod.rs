@@ -47,6 +47,77 @@ pub struct Scene {
     pub settings: RenderSettings,
     /// What loading noticed but could use anyway (ignored parts of models).
     pub warnings: Vec<String>,
+    /// What loading built and what it cost.
+    pub inventory: Inventory,
+}
+
+/// What a scene holds beyond its primitives, and what building it cost.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Inventory {
+    /// Time spent building the acceleration structure over the primitives
+    /// (after files were read and checked).
+    pub build_time: std::time::Duration,
+    /// Textures decoded (each file once).
+    pub textures: usize,
+    /// Bytes of decoded texels.
+    pub texture_bytes: u64,
+}
+
+/// Counts of what a scene holds, for `prism check` and the summary line.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Census {
+    /// Spheres (and ellipsoids), planes, polygons, mesh placements.
+    pub spheres: usize,
+    /// Infinite planes.
+    pub planes: usize,
+    /// Polygons.
+    pub polygons: usize,
+    /// Mesh placements (instances).
+    pub mesh_instances: usize,
+    /// Distinct meshes (each stored once however often placed).
+    pub meshes: usize,
+    /// Triangles stored (over distinct meshes).
+    pub triangles: usize,
+    /// Triangles placed (over instances).
+    pub placed_triangles: usize,
+    /// Estimated bytes of geometry, acceleration structures and textures.
+    pub memory_bytes: u64,
+}
+
+impl Scene {
+    /// Counts the scene's primitives by kind, its meshes and triangles, and
+    /// estimates its memory.
+    pub fn census(&self) -> Census {
+        use crate::accel::Shape;
+        let mut c = Census::default();
+        let mut seen: Vec<*const crate::geometry::Mesh> = Vec::new();
+        let mut bytes = std::mem::size_of_val(self.aggregate.primitives()) as u64;
+        for p in self.aggregate.primitives() {
+            match &p.shape {
+                Shape::Sphere(_) | Shape::Ellipsoid(_) => c.spheres += 1,
+                Shape::Plane(_) => c.planes += 1,
+                Shape::Polygon(poly) => {
+                    c.polygons += 1;
+                    bytes += (poly.vertices().len() * 40) as u64;
+                }
+                Shape::Mesh(m) => {
+                    c.mesh_instances += 1;
+                    c.placed_triangles += m.mesh.triangle_count();
+                    let ptr = std::sync::Arc::as_ptr(&m.mesh);
+                    if !seen.contains(&ptr) {
+                        seen.push(ptr);
+                        c.meshes += 1;
+                        c.triangles += m.mesh.triangle_count();
+                        bytes += m.mesh.memory_bytes() as u64;
+                    }
+                }
+            }
+        }
+        // The top-level tree: about two nodes' worth per primitive.
+        bytes += 64 * self.aggregate.primitives().len() as u64;
+        c.memory_bytes = bytes + self.inventory.texture_bytes;
+        c
+    }
 }
 
 impl Scene {
@@ -89,6 +160,28 @@ impl Scene {
 
     /// [`load`](Self::load) with `options`.
     pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Scene, SceneError> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        if let Some(ext @ ("obj" | "ply" | "gltf" | "glb")) = ext.as_deref() {
+            // A model given where a scene belongs: say how to use it rather
+            // than report its bytes as hundreds of TOML errors.
+            let name = path
+                .file_name()
+                .map_or(String::new(), |n| n.to_string_lossy().into_owned());
+            return Err(SceneError::Invalid {
+                origin: path.display().to_string(),
+                diagnostics: vec![Diagnostic {
+                    line: 1,
+                    column: 1,
+                    message: format!(
+                        "this is a .{ext} model, not a scene; a model goes in a scene file as \
+                         [[objects]] with type = \"mesh\" and file = \"{name}\" (see docs/scene-format.md)"
+                    ),
+                }],
+            });
+        }
         let bytes = std::fs::read(path).map_err(|source| SceneError::Read {
             path: path.to_path_buf(),
             source,
