@@ -263,6 +263,16 @@ fn read_uri(uri: &str, dir: &Path, res: &Resources) -> Result<Vec<u8>, String> {
         .map_err(|e| format!("{}: {e}", file.display()))
 }
 
+/// `list[i]`, or an error at JSON path `at` naming what is missing.
+fn lookup<'r, T>(list: &'r [T], i: usize, at: &str, what: &str) -> Result<&'r T, String> {
+    list.get(i).ok_or_else(|| {
+        format!(
+            "{at}: {what} {i} does not exist ({} in the file)",
+            list.len()
+        )
+    })
+}
+
 /// A value for messages, cut to a readable length.
 fn short(s: &str) -> String {
     super::cut(s, 80)
@@ -529,6 +539,29 @@ impl<'a> Reader<'a> {
         }
     }
 
+    /// The bytes of buffer view `v`, checked to lie inside its buffer.
+    fn view_bytes(&self, v: usize) -> Result<&'a [u8], String> {
+        let view = lookup(&self.root.buffer_views, v, "bufferViews", "buffer view")?;
+        let b = view.buffer.value();
+        let buffer = lookup(
+            self.buffers,
+            b,
+            &format!("bufferViews[{v}].buffer"),
+            "buffer",
+        )?;
+        let start = view.byte_offset.map_or(0, |o| o.0);
+        let len = view.byte_length.0;
+        start
+            .checked_add(len)
+            .and_then(|end| buffer.get(usize::try_from(start).ok()?..usize::try_from(end).ok()?))
+            .ok_or_else(|| {
+                format!(
+                    "bufferViews[{v}]: bytes {start}..+{len} lie past the end of buffer {b} ({} bytes)",
+                    buffer.len()
+                )
+            })
+    }
+
     /// The accessor `index` read at JSON path `at`, checked against `expect`
     /// and against its buffer view and buffer.
     fn elements(
@@ -539,12 +572,7 @@ impl<'a> Reader<'a> {
     ) -> Result<Elements<'a>, String> {
         let root = self.root;
         let i = index.value();
-        let a = root.accessors.get(i).ok_or_else(|| {
-            format!(
-                "{at}: accessor {i} does not exist ({} accessors)",
-                root.accessors.len()
-            )
-        })?;
+        let a = lookup(&root.accessors, i, at, "accessor")?;
         let at = format!("{at} (accessors[{i}])");
         if a.sparse.is_some() {
             return Err(format!("{at}: sparse accessors are not supported"));
@@ -589,30 +617,14 @@ impl<'a> Reader<'a> {
             ));
         };
         let v = view_index.value();
-        let view = root.buffer_views.get(v).ok_or_else(|| {
-            format!(
-                "{at}.bufferView: buffer view {v} does not exist ({} views)",
-                root.buffer_views.len()
-            )
-        })?;
-        let b = view.buffer.value();
-        let buffer = self.buffers.get(b).ok_or_else(|| {
-            format!(
-                "bufferViews[{v}].buffer: buffer {b} does not exist ({} buffers)",
-                self.buffers.len()
-            )
-        })?;
-        let view_start = view.byte_offset.map_or(0, |o| o.0);
-        let view_len = view.byte_length.0;
-        let view_end = view_start
-            .checked_add(view_len)
-            .filter(|&e| e <= buffer.len() as u64)
-            .ok_or_else(|| {
-                format!(
-                    "bufferViews[{v}]: bytes {view_start}..+{view_len} lie past the end of buffer {b} ({} bytes)",
-                    buffer.len()
-                )
-            })?;
+        let view = lookup(
+            &root.buffer_views,
+            v,
+            &format!("{at}.bufferView"),
+            "buffer view",
+        )?;
+        let view_bytes = self.view_bytes(v)?;
+        let view_len = view_bytes.len() as u64;
         let components = match kind {
             Type::Scalar => 1,
             Type::Vec2 => 2,
@@ -640,7 +652,7 @@ impl<'a> Reader<'a> {
                  need {end} bytes, but buffer view {v} has {view_len}"
             ));
         }
-        let data = &buffer[(view_start + offset) as usize..view_end as usize];
+        let data = &view_bytes[offset as usize..];
         Ok(Elements {
             data,
             stride: stride as usize,
@@ -658,12 +670,7 @@ impl<'a> Reader<'a> {
         default_slot: u32,
         needs_default: &mut bool,
     ) -> Result<MeshData, String> {
-        let mesh = self.root.meshes.get(m).ok_or_else(|| {
-            format!(
-                "nodes[{node}].mesh: mesh {m} does not exist ({} meshes)",
-                self.root.meshes.len()
-            )
-        })?;
+        let mesh = lookup(&self.root.meshes, m, &format!("nodes[{node}].mesh"), "mesh")?;
         let mut data = MeshData::default();
         for (p, primitive) in mesh.primitives.iter().enumerate() {
             let at = format!("meshes[{m}].primitives[{p}]");
@@ -891,19 +898,9 @@ impl<'a> Reader<'a> {
         res: &mut Resources,
     ) -> Result<Arc<crate::shading::texture::ImageTexture>, String> {
         let root = self.root;
-        let texture = root.textures.get(t).ok_or_else(|| {
-            format!(
-                "{at}.index: texture {t} does not exist ({} textures)",
-                root.textures.len()
-            )
-        })?;
+        let texture = lookup(&root.textures, t, &format!("{at}.index"), "texture")?;
         let i = texture.source.value();
-        let image = root.images.get(i).ok_or_else(|| {
-            format!(
-                "textures[{t}].source: image {i} does not exist ({} images)",
-                root.images.len()
-            )
-        })?;
+        let image = lookup(&root.images, i, &format!("textures[{t}].source"), "image")?;
         let at = format!("images[{i}]");
         let failed = |e: String| format!("{at}: {e}");
         let model = res.policy.check(self.file).map_err(failed)?;
@@ -926,22 +923,7 @@ impl<'a> Reader<'a> {
                     .map_err(failed)
             }
             (None, Some(view)) => {
-                let v = view.value();
-                let view = root
-                    .buffer_views
-                    .get(v)
-                    .ok_or_else(|| failed(format!("buffer view {v} does not exist")))?;
-                let buffer = self
-                    .buffers
-                    .get(view.buffer.value())
-                    .ok_or_else(|| failed(format!("bufferViews[{v}]: buffer does not exist")))?;
-                let start = view.byte_offset.map_or(0, |o| o.0);
-                let bytes = start
-                    .checked_add(view.byte_length.0)
-                    .and_then(|end| buffer.get(start as usize..end as usize))
-                    .ok_or_else(|| {
-                        failed(format!("bufferViews[{v}] lies past the end of its buffer"))
-                    })?;
+                let bytes = self.view_bytes(view.value()).map_err(failed)?;
                 res.texture_bytes_of(TextureKey::Embedded(model, i), bytes)
                     .map_err(failed)
             }
