@@ -534,3 +534,20 @@ fn check_reports_what_the_scene_holds() {
         assert!(out.contains(want), "want {want:?} in:\n{out}");
     }
 }
+
+#[test]
+fn out_of_range_model_placements_are_errors_not_silently_moved_or_dropped() {
+    // A glTF node scaled past the range: refused, not placed untransformed.
+    let d = gltf_case(|g| g["nodes"][0]["scale"] = json!([1e31, 1, 1]));
+    assert_refused(
+        d.path(),
+        &[],
+        &["m.gltf", "node's transform is singular or out of range"],
+    );
+    // An object transform that takes the model past ±1e30: refused, not dropped.
+    let d = gltf_case(|_| {});
+    let scene = std::fs::read_to_string(d.path().join("scene.toml")).unwrap()
+        + "transform = [{ scale = 1e20 }, { translate = [1e29, 0, 0] }, { scale = 1e5 }]\n";
+    std::fs::write(d.path().join("scene.toml"), scene).unwrap();
+    assert_refused(d.path(), &[], &["objects[0]", "out of range"]);
+}

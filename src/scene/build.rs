@@ -619,27 +619,41 @@ impl Check<'_, '_> {
             Some(None) => return Vec::new(),
             None => loaded.slots.clone(),
         };
-        loaded
-            .placements
-            .iter()
-            .filter_map(|(mesh, placement)| {
-                // The placement inside the model first, then the object's.
-                let transform = match (placement, &object) {
-                    (None, None) => None,
-                    (Some(p), None) => Some(*p),
-                    (None, Some(o)) => Some(*o),
-                    (Some(p), Some(o)) => Some(Transform::from_affine(o.to_world * p.to_world)?),
-                };
-                Some(Primitive {
-                    shape: Shape::Mesh(MeshInstance {
-                        mesh: loaded.meshes[*mesh].clone(),
-                        transform,
-                        materials: materials.clone(),
-                    }),
-                    material: materials[0],
-                })
-            })
-            .collect()
+        let mut primitives = Vec::with_capacity(loaded.placements.len());
+        for (mesh, placement) in &loaded.placements {
+            // The placement inside the model first, then the object's.
+            let transform = match (placement, &object) {
+                (None, None) => None,
+                (Some(p), None) => Some(*p),
+                (None, Some(o)) => Some(*o),
+                (Some(p), Some(o)) => match Transform::from_affine(o.to_world * p.to_world) {
+                    Some(t) => Some(t),
+                    None => {
+                        self.error(
+                            desc.span(),
+                            format!(
+                                "{label}: the object's transform times the model's node \
+                                 transform is singular or out of range"
+                            ),
+                        );
+                        return Vec::new();
+                    }
+                },
+            };
+            let shape = Shape::Mesh(MeshInstance {
+                mesh: loaded.meshes[*mesh].clone(),
+                transform,
+                materials: materials.clone(),
+            });
+            if !self.within_range(&shape, desc, label) {
+                return Vec::new();
+            }
+            primitives.push(Primitive {
+                shape,
+                material: materials[0],
+            });
+        }
+        primitives
     }
 
     /// The index of material `name`, or an error listing the known ones.
@@ -782,19 +796,28 @@ impl Check<'_, '_> {
                 }
             }
         }
-        let placements = model
-            .placements
-            .iter()
-            .map(|&(mesh, m)| {
-                let affine = DAffine3::from_mat4(m);
-                (
-                    mesh,
-                    (affine != DAffine3::IDENTITY)
-                        .then(|| Transform::from_affine(affine))
-                        .flatten(),
-                )
-            })
-            .collect();
+        let mut placements = Vec::with_capacity(model.placements.len());
+        for &(mesh, m) in &model.placements {
+            let affine = DAffine3::from_mat4(m);
+            if affine == DAffine3::IDENTITY {
+                placements.push((mesh, None));
+                continue;
+            }
+            // Out of range or singular is an error, never "placed as is".
+            let Some(t) = Transform::from_affine(affine) else {
+                self.model_failed = true;
+                self.error(
+                    file.span(),
+                    format!(
+                        "{label}: {}: a node's transform is singular or out of range (scale \
+                         factors 1e-30 to 1e30, translations within ±1e30)",
+                        path.display()
+                    ),
+                );
+                return None;
+            };
+            placements.push((mesh, Some(t)));
+        }
         let slots: Arc<[u32]> = if model.materials.is_empty() {
             let default = *self.default_material.get_or_insert_with(|| {
                 self.materials.push(Material::default());
