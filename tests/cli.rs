@@ -196,6 +196,25 @@ fn coefficients_that_create_light_are_refused() {
         "12:6",
         "`kd` must be between 0 and 1e15, got -0.5",
     );
+    // Per channel: red alone exceeds 1.
+    assert_rejected(
+        &GOOD.replace(
+            "color = [1, 0, 0]",
+            "kr = [0.7, 0.2, 0.2]\nkt = [0.6, 0.1, 0]",
+        ),
+        "13:6",
+        "kr + kt = 1.3 exceeds 1",
+    );
+    assert_rejected(
+        &GOOD.replace("color = [1, 0, 0]", "kr = [0.5, -1, 0]"),
+        "12:6",
+        "`kr` must be between 0 and 1e15 (one number, or one per colour channel), got [0.5, -1.0, 0.0]",
+    );
+    assert_rejected(
+        &GOOD.replace("color = [1, 0, 0]", "kt = nan"),
+        "12:6",
+        "`kt` must be between 0 and 1e15 (one number, or one per colour channel), got NaN",
+    );
 }
 
 #[test]

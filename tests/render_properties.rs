@@ -501,7 +501,7 @@ fn glass_ball_seen_along_its_axis_passes_kt_squared() {
     );
     // Without kr it is exactly kt²·background.
     let mut s = s;
-    s.materials[0].kr = 0.0;
+    s.materials[0].kr = glam::DVec3::ZERO;
     let got = film(&s, 1).get(0, 0);
     assert!((got - 0.64 * b).abs().max_element() < 1e-12, "{got}");
 }
@@ -675,4 +675,103 @@ fn lossless_glass_vanishes_in_a_white_furnace() {
             assert!(p.min_element() >= 1.0 - lost, "{fresnel}: energy lost: {p}");
         }
     }
+}
+
+/// An orthographic view straight down on a floor, lit by ambient light
+/// only, below `material`; the background is white.
+fn tinted_floor_pixel(material: &str, extra: &str) -> DVec3 {
+    let s = scene(&format!(
+        r#"
+        [render]
+        width = 1
+        height = 1
+        spp = 1
+        ambient = [0, 0, 0]
+        background = [1, 1, 1]
+        {extra}
+        [camera]
+        type = "orthographic"
+        position = [0, 5, 0]
+        look_at = [0, 0, 0]
+        up = [0, 0, -1]
+        view_height = 0.1
+        [materials.m]
+        {material}
+        [[objects]]
+        type = "plane"
+        material = "m"
+        normal = [0, 1, 0]
+        "#
+    ));
+    film(&s, 1).get(0, 0)
+}
+
+#[test]
+fn a_coloured_kr_tints_the_reflection_and_a_number_stays_grey() {
+    // A black mirror seen straight on reflects the white background back,
+    // each channel weighted by its kr.
+    let gold = tinted_floor_pixel("kd = 0\nka = 0\nkr = [1.0, 0.766, 0.336]", "");
+    assert_eq!(gold, DVec3::new(1.0, 0.766, 0.336));
+    let grey = tinted_floor_pixel("kd = 0\nka = 0\nkr = 0.5", "");
+    assert_eq!(grey, DVec3::splat(0.5));
+    // The same as a triple of equal numbers, bit for bit.
+    assert_eq!(
+        tinted_floor_pixel("kd = 0\nka = 0\nkr = [0.5, 0.5, 0.5]", ""),
+        grey
+    );
+}
+
+#[test]
+fn coloured_kt_filters_transparent_shadows_by_channel() {
+    // A white floor lit from straight above through a pane that passes
+    // only red (kt = [0.9, 0, 0]): with transparent shadows the light
+    // reaching the floor below is the unblocked light times kt, channel by
+    // channel; with classic shadows the pane blocks everything.
+    let lit = |pane: bool, transparent: bool| {
+        let pane = if pane {
+            "[materials.red_glass]\nkd = 0\nka = 0\nkt = [0.9, 0, 0]\nior = 1\n\
+             [[objects]]\ntype = \"plane\"\nmaterial = \"red_glass\"\nnormal = [0, 1, 0]\ndistance = 2\n"
+        } else {
+            ""
+        };
+        let s = scene(&format!(
+            r#"
+            [render]
+            width = 1
+            height = 1
+            spp = 1
+            ambient = [0, 0, 0]
+            transparent_shadows = {transparent}
+            [camera]
+            type = "orthographic"
+            position = [0, 1, 0]
+            look_at = [0, 0, 0]
+            up = [0, 0, -1]
+            view_height = 0.1
+            [materials.white]
+            kd = 1
+            ka = 0
+            [lights.l]
+            type = "point"
+            position = [0, 4, 0]
+            [[objects]]
+            type = "plane"
+            material = "white"
+            normal = [0, 1, 0]
+            {pane}
+            "#
+        ));
+        film(&s, 1).get(0, 0)
+    };
+    let open = lit(false, true);
+    assert!(open.min_element() > 0.0);
+    let filtered = lit(true, true);
+    assert!(
+        (filtered - open * DVec3::new(0.9, 0.0, 0.0))
+            .abs()
+            .max_element()
+            < 1e-12,
+        "{filtered} vs {open}"
+    );
+    assert_eq!(lit(true, false), DVec3::ZERO);
 }

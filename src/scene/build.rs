@@ -229,6 +229,30 @@ impl Check<'_, '_> {
         c
     }
 
+    /// An optional reflection or transmission weight, 0 by default: a
+    /// number is a grey, three numbers a colour; each in [0, MAX_VALUE].
+    fn weight(&mut self, v: &Option<Spanned<OneOrThree>>, what: &str) -> DVec3 {
+        let Some(v) = v else { return DVec3::ZERO };
+        let k = DVec3::from_array(v.get_ref().0);
+        let [x, y, z] = v.get_ref().0.map(f64::to_bits);
+        let given = if x == y && y == z {
+            readable(k.x)
+        } else {
+            format!("{:?}", v.get_ref().0)
+        };
+        if !k.to_array().into_iter().all(VALUE.0) {
+            self.error(
+                v.span(),
+                format!(
+                    "`{what}` must be {} (one number, or one per colour channel), got {given}",
+                    VALUE.1
+                ),
+            );
+            return DVec3::ZERO;
+        }
+        k
+    }
+
     /// An optional number with a default, checked against `valid`.
     fn number(
         &mut self,
@@ -391,9 +415,10 @@ impl Check<'_, '_> {
                 }
             }
         };
-        let kr = self.number(&d.kr, 0.0, "kr", VALUE);
-        let kt = self.number(&d.kt, 0.0, "kt", VALUE);
-        if kr + kt > 1.0 + 1e-9 {
+        let kr = self.weight(&d.kr, "kr");
+        let kt = self.weight(&d.kt, "kt");
+        let sum = (kr + kt).max_element();
+        if sum > 1.0 + 1e-9 {
             let span =
                 d.kt.as_ref()
                     .or(d.kr.as_ref())
@@ -402,7 +427,7 @@ impl Check<'_, '_> {
                 span,
                 format!(
                     "material `{name}`: kr + kt = {} exceeds 1, which would create light",
-                    short(kr + kt)
+                    short(sum)
                 ),
             );
         }

@@ -161,10 +161,11 @@ pub struct MaterialDesc {
     pub ks: Option<Number>,
     /// Phong exponent.
     pub shininess: Option<Number>,
-    /// Reflection weight.
-    pub kr: Option<Number>,
-    /// Transmission weight.
-    pub kt: Option<Number>,
+    /// Reflection weight: a number (grey) or an RGB colour (tinted
+    /// reflection, e.g. gold).
+    pub kr: Option<Spanned<OneOrThree>>,
+    /// Transmission weight: a number or an RGB colour (tinted glass).
+    pub kt: Option<Spanned<OneOrThree>>,
     /// Index of refraction.
     pub ior: Option<Number>,
     /// Fresnel mode.
@@ -298,39 +299,40 @@ pub enum TransformOp {
         degrees: f64,
     },
     /// `{ scale = s }` or `{ scale = [x, y, z] }`.
-    Scale(ScaleDesc),
+    Scale(OneOrThree),
     /// `{ matrix = [[...], [...], [...], [...]] }`: row-major 4×4 acting on
     /// column vectors; the last row must be [0, 0, 0, 1].
     Matrix([[f64; 4]; 4]),
 }
 
-/// A uniform or per-axis scale.
+/// A number that stands for three equal ones, or three numbers: a uniform
+/// or per-axis scale, a grey or coloured weight.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ScaleDesc(pub [f64; 3]);
+pub struct OneOrThree(pub [f64; 3]);
 
-impl<'de> Deserialize<'de> for ScaleDesc {
+impl<'de> Deserialize<'de> for OneOrThree {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         struct V;
         impl<'de> serde::de::Visitor<'de> for V {
-            type Value = ScaleDesc;
+            type Value = OneOrThree;
             fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
                 f.write_str("a number or an array of 3 numbers")
             }
-            fn visit_f64<E>(self, v: f64) -> Result<ScaleDesc, E> {
-                Ok(ScaleDesc([v; 3]))
+            fn visit_f64<E>(self, v: f64) -> Result<OneOrThree, E> {
+                Ok(OneOrThree([v; 3]))
             }
-            fn visit_i64<E>(self, v: i64) -> Result<ScaleDesc, E> {
-                Ok(ScaleDesc([v as f64; 3]))
+            fn visit_i64<E>(self, v: i64) -> Result<OneOrThree, E> {
+                Ok(OneOrThree([v as f64; 3]))
             }
-            fn visit_u64<E>(self, v: u64) -> Result<ScaleDesc, E> {
-                Ok(ScaleDesc([v as f64; 3]))
+            fn visit_u64<E>(self, v: u64) -> Result<OneOrThree, E> {
+                Ok(OneOrThree([v as f64; 3]))
             }
             fn visit_seq<A: serde::de::SeqAccess<'de>>(
                 self,
                 seq: A,
-            ) -> Result<ScaleDesc, A::Error> {
+            ) -> Result<OneOrThree, A::Error> {
                 let v = <[f64; 3]>::deserialize(serde::de::value::SeqAccessDeserializer::new(seq))?;
-                Ok(ScaleDesc(v))
+                Ok(OneOrThree(v))
             }
         }
         d.deserialize_any(V)

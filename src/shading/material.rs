@@ -40,10 +40,11 @@ pub struct Material {
     pub ks: f64,
     /// Phong exponent n.
     pub shininess: f64,
-    /// Weight of the reflected ray.
-    pub kr: f64,
-    /// Weight of the transmitted ray.
-    pub kt: f64,
+    /// Weight of the reflected ray, per colour channel (equal channels
+    /// for the classic grey mirror; a metal's tint otherwise).
+    pub kr: DVec3,
+    /// Weight of the transmitted ray, per colour channel (tinted glass).
+    pub kt: DVec3,
     /// Index of refraction of the inside.
     pub ior: f64,
     /// Fresnel mode.
@@ -61,8 +62,8 @@ impl Default for Material {
             kd: 0.8,
             ks: 0.0,
             shininess: 32.0,
-            kr: 0.0,
-            kt: 0.0,
+            kr: DVec3::ZERO,
+            kt: DVec3::ZERO,
             ior: 1.0,
             fresnel: Fresnel::Off,
             highlight: Highlight::Phong,
@@ -71,6 +72,18 @@ impl Default for Material {
 }
 
 impl Material {
+    /// kr and kt scaled down together, if needed, so that no channel of
+    /// kr + kt exceeds 1 (more would create light). Model formats do not
+    /// forbid such values, so their loaders use this instead of refusing.
+    pub fn conserving(kr: DVec3, kt: DVec3) -> (DVec3, DVec3) {
+        let sum = (kr + kt).max_element();
+        if sum > 1.0 {
+            (kr / sum, kt / sum)
+        } else {
+            (kr, kt)
+        }
+    }
+
     /// The local (Phong) term of the Whitted model for one light direction,
     /// per unit of light: kd·Od·max(0, N·L) + ks·max(0, R·V)ⁿ with
     /// R = reflect(−L, N) (or ks·max(0, N·H)ⁿ, H = (L + V)/|L + V|, for
@@ -102,8 +115,8 @@ mod tests {
             kd: 0.6,
             ks: 0.5,
             shininess: 10.0,
-            kr: 0.0,
-            kt: 0.0,
+            kr: DVec3::ZERO,
+            kt: DVec3::ZERO,
             ior: 1.0,
             fresnel: Fresnel::Off,
             highlight,
@@ -128,6 +141,17 @@ mod tests {
         assert!((c - expected).length() < 1e-12, "{c}");
         // Light below the surface: nothing.
         assert_eq!(m.phong(od, n, -l, v), DVec3::ZERO);
+    }
+
+    #[test]
+    fn conserving_scales_the_strongest_channel_to_one() {
+        let (kr, kt) = Material::conserving(DVec3::new(0.9, 0.5, 0.1), DVec3::splat(0.3));
+        assert!((kr + kt).max_element() <= 1.0 + 1e-15);
+        assert!((kr - DVec3::new(0.75, 0.5 / 1.2, 0.1 / 1.2)).length() < 1e-15);
+        assert!((kt - DVec3::splat(0.25)).length() < 1e-15);
+        // Within bounds: untouched, bit for bit.
+        let (kr, kt) = Material::conserving(DVec3::splat(0.4), DVec3::new(0.6, 0.1, 0.0));
+        assert_eq!((kr, kt), (DVec3::splat(0.4), DVec3::new(0.6, 0.1, 0.0)));
     }
 
     #[test]

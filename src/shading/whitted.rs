@@ -102,14 +102,15 @@ struct PathState {
     kind: RayKind,
     /// 1 for the camera ray.
     depth: u32,
-    /// Product of the kr/kt factors from the camera to this ray.
-    weight: f64,
+    /// Product of the kr/kt factors from the camera to this ray, per
+    /// colour channel.
+    weight: DVec3,
     /// The media the ray travels through.
     media: Media,
 }
 
 impl PathState {
-    fn child(&self, kind: RayKind, k: f64, media: Media) -> PathState {
+    fn child(&self, kind: RayKind, k: DVec3, media: Media) -> PathState {
         PathState {
             kind,
             depth: self.depth + 1,
@@ -134,8 +135,8 @@ struct ShadingPoint<'m> {
 /// How a hit divides the rest of the path: the weights of the reflected and
 /// transmitted rays, the transmitted direction, the media beyond.
 struct Split {
-    kr: f64,
-    kt: f64,
+    kr: DVec3,
+    kt: DVec3,
     refracted: Option<DVec3>,
     media_beyond: Media,
 }
@@ -151,7 +152,7 @@ impl<'a> Whitted<'a> {
         let path = PathState {
             kind: RayKind::Camera,
             depth: 1,
-            weight: 1.0,
+            weight: DVec3::ONE,
             media: Media::default(),
         };
         self.trace(ray, path, rng, stats)
@@ -193,20 +194,26 @@ impl<'a> Whitted<'a> {
         }
 
         let split = self.split(&point, material_index, entering, path.media);
-        if split.kr > 0.0 && path.weight * split.kr >= self.settings.min_weight {
+        if split.kr != DVec3::ZERO && self.worth_tracing(path.weight * split.kr) {
             let r = Ray::spawn(hit.point, hit.normal, reflect(ray.direction, point.n));
             let child = path.child(RayKind::Reflection, split.kr, path.media);
             color += split.kr * self.trace(&r, child, rng, stats);
         }
         if let Some(t) = split
             .refracted
-            .filter(|_| path.weight * split.kt >= self.settings.min_weight)
+            .filter(|_| self.worth_tracing(path.weight * split.kt))
         {
             let r = Ray::spawn(hit.point, hit.normal, t.normalize());
             let child = path.child(RayKind::Refraction, split.kt, split.media_beyond);
             color += split.kt * self.trace(&r, child, rng, stats);
         }
         color
+    }
+
+    /// Whitted's adaptive depth control: a ray is traced while its weight in
+    /// the pixel, in its strongest channel, reaches `min_weight`.
+    fn worth_tracing(&self, weight: DVec3) -> bool {
+        weight.max_element() >= self.settings.min_weight
     }
 
     /// kr, kt and the refracted direction at a hit: the material's weights,
@@ -221,7 +228,7 @@ impl<'a> Whitted<'a> {
     ) -> Split {
         let material = point.material;
         let (mut kr, mut kt) = (material.kr, material.kt);
-        if kt == 0.0 {
+        if kt == DVec3::ZERO {
             return Split {
                 kr,
                 kt,
@@ -251,7 +258,7 @@ impl<'a> Whitted<'a> {
         let refracted = refract(-point.view, point.n, eta_i / eta_t);
         if refracted.is_none() {
             // Total internal reflection: all the energy is reflected.
-            (kr, kt) = (kr + kt, 0.0);
+            (kr, kt) = (kr + kt, DVec3::ZERO);
         }
         Split {
             kr,
@@ -280,7 +287,7 @@ impl<'a> Whitted<'a> {
                 continue;
             }
             let visibility = self.visibility(&point.hit, &sample, stats);
-            if visibility > 0.0 {
+            if visibility != DVec3::ZERO {
                 sum += visibility
                     * sample.falloff
                     * point
@@ -291,29 +298,30 @@ impl<'a> Whitted<'a> {
         light.radiance * sum / count as f64
     }
 
-    /// The fraction of light that reaches the hit along a shadow feeler.
-    /// Classic Whitted: any object blocks (0 or 1), found by an any-hit
-    /// query. With transparent shadows, each transparent blocker passes kt.
-    fn visibility(&self, hit: &Hit, sample: &LightSample, stats: &mut RayStats) -> f64 {
+    /// The fraction of light that reaches the hit along a shadow feeler, per
+    /// colour channel. Classic Whitted: any object blocks (0 or 1), found by
+    /// an any-hit query. With transparent shadows, each transparent blocker
+    /// passes its kt (so tinted glass casts a tinted shadow).
+    fn visibility(&self, hit: &Hit, sample: &LightSample, stats: &mut RayStats) -> DVec3 {
         let mut feeler = Ray::spawn(hit.point, hit.normal, sample.direction);
         let mut remaining = sample.distance - (feeler.origin - hit.point).length();
         if !self.scene.transparent_shadows {
             stats.shadow += 1;
             return if self.scene.aggregate.any_hit(&feeler, remaining) {
-                0.0
+                DVec3::ZERO
             } else {
-                1.0
+                DVec3::ONE
             };
         }
-        let mut transmission = 1.0;
+        let mut transmission = DVec3::ONE;
         loop {
             stats.shadow += 1;
             let Some(blocker) = self.scene.aggregate.closest_hit(&feeler, remaining) else {
                 return transmission;
             };
             transmission *= self.scene.materials[blocker.material as usize].kt;
-            if transmission < 1e-6 {
-                return 0.0;
+            if transmission.max_element() < 1e-6 {
+                return DVec3::ZERO;
             }
             let next = Ray::spawn(blocker.point, blocker.normal, sample.direction);
             remaining -= blocker.t + (next.origin - blocker.point).length();

@@ -3,8 +3,8 @@
 //! transform), the first camera, KHR_lights_punctual lights, and materials
 //! mapped onto the Whitted model (see docs/scene-format.md):
 //! Od = baseColorFactor × baseColorTexture, kd = 1 − metallic,
-//! kr = metallic, ks = 1 − roughness with a Blinn exponent 2/α² − 2
-//! (α = roughness²), kt = KHR_materials_transmission, ior =
+//! kr = metallic × baseColorFactor (a tinted mirror), ks = 1 − roughness with a Blinn exponent 2/α² − 2
+//! (α = roughness²), kt = KHR_materials_transmission × baseColorFactor, ior =
 //! KHR_materials_ior (1.5 by default). What is not mapped is named in a
 //! warning.
 //!
@@ -846,7 +846,7 @@ impl<'a> Reader<'a> {
             self.warn("only base colour textures are used; normal, occlusion, emissive and metallic-roughness maps are ignored".into());
         }
         let ext = m.extensions.as_ref();
-        let mut kt = match ext.and_then(|e| e.transmission.as_ref()) {
+        let transmission = match ext.and_then(|e| e.transmission.as_ref()) {
             Some(t) => self.unit_factor(
                 t.transmission_factor.0,
                 &format!("{at}.extensions.KHR_materials_transmission.transmissionFactor"),
@@ -865,23 +865,20 @@ impl<'a> Reader<'a> {
             }
             None => 1.5,
         };
-        let mut kr = metallic;
-        if kr + kt > 1.0 {
-            let s = 1.0 / (kr + kt);
-            kr *= s;
-            kt *= s;
-        }
+        // A metal reflects its base colour (gold is gold), and transmitted
+        // light is tinted by it too (KHR_materials_transmission).
+        let (kr, kt) = Material::conserving(metallic * base, transmission * base);
         let alpha = roughness * roughness;
         Ok(Material {
             texture,
             ka: 0.1,
-            kd: (1.0 - metallic) * (1.0 - kt),
+            kd: (1.0 - metallic) * (1.0 - transmission),
             ks: 1.0 - roughness,
             shininess: (2.0 / (alpha * alpha) - 2.0).clamp(1.0, 10_000.0),
             kr,
             kt,
             ior,
-            fresnel: if kt > 0.0 {
+            fresnel: if transmission > 0.0 {
                 Fresnel::Exact
             } else {
                 Fresnel::Off

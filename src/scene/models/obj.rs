@@ -5,9 +5,9 @@
 //! MTL to Whitted mapping (also in docs/scene-format.md):
 //! Od = Kd (times map_Kd), kd = 1, ka = max(Ka), ks = max(Ks), shininess =
 //! Ns; illum 0: ambient colour only; 1: no highlight; 2: highlight;
-//! 3: + mirror reflection kr = max(Ks); 4, 6, 7: + transparency
-//! kt = 1 − d (or max(Tf)), ior = Ni; 5, 7: Fresnel. kr + kt is scaled down
-//! to 1 if it exceeds it.
+//! 3: + mirror reflection kr = Ks (a colour: tinted metals); 4, 6, 7:
+//! + transparency kt = Tf (a colour) or else 1 − d, ior = Ni; 5, 7: Fresnel.
+//! kr + kt is scaled down so that no channel exceeds 1.
 
 use std::cell::RefCell;
 use std::path::Path;
@@ -332,25 +332,33 @@ fn material(
                 .map(|tr| 1.0 - tr)
         })
         .unwrap_or(1.0);
+    // Tf is the transmission filter: the colour that passes (one number
+    // stands for three).
     let tf = m.unknown_param.get("Tf").and_then(|t| {
         let v: Vec<f64> = t
             .split_whitespace()
             .filter_map(|x| x.parse().ok())
             .collect();
-        v.iter().copied().reduce(f64::max)
+        match v[..] {
+            [g] => Some(DVec3::splat(g)),
+            [r, g, b, ..] => Some(DVec3::new(r, g, b)),
+            _ => None,
+        }
     });
     let transparent = matches!(illum, 4 | 6 | 7);
-    let mut kr = if matches!(illum, 3..=7) { ks } else { 0.0 };
-    let mut kt = if transparent {
-        tf.unwrap_or(1.0 - dissolve).clamp(0.0, 1.0)
+    // The mirror reflects Ks's colour (a tinted metal), not its maximum.
+    let kr = if matches!(illum, 3..=7) {
+        rgb(m.specular).unwrap_or(DVec3::ZERO)
     } else {
-        0.0
+        DVec3::ZERO
     };
-    if kr + kt > 1.0 {
-        let s = 1.0 / (kr + kt);
-        kr *= s;
-        kt *= s;
-    }
+    let kt = if transparent {
+        tf.unwrap_or(DVec3::splat(1.0 - dissolve))
+            .clamp(DVec3::ZERO, DVec3::ONE)
+    } else {
+        DVec3::ZERO
+    };
+    let (kr, kt) = Material::conserving(kr, kt);
     let texture = match &m.diffuse_texture {
         None => Texture::Solid(kd_color),
         Some(file) => {
