@@ -5,8 +5,8 @@
 //! MTL to Whitted mapping (also in docs/scene-format.md):
 //! Od = Kd (times map_Kd), kd = 1, ka = max(Ka), ks = max(Ks), shininess =
 //! Ns; illum 0: ambient colour only; 1: no highlight; 2: highlight;
-//! 3: + mirror reflection kr = Ks (a colour: tinted metals); 4, 6, 7:
-//! + transparency kt = Tf (a colour) or else 1 − d, ior = Ni; 5, 7: Fresnel.
+//! 3: + mirror reflection kr = Ks (a colour: tinted metals); 4, 6, 7: and
+//! transparency kt = Tf (a colour) or else 1 − d, ior = Ni; 5, 7: Fresnel.
 //! kr + kt is scaled down so that no channel exceeds 1.
 
 use std::cell::RefCell;
