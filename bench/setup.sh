@@ -3,11 +3,11 @@
 # and Embree through the embreex package in bench/.venv.
 set -euo pipefail
 cd "$(dirname "$0")"
-if ! command -v povray >/dev/null 2>&1; then
+if ! command -v povray >/dev/null 2>&1 || [ ! -x /usr/bin/time ]; then
     SUDO=""
     [ "$(id -u)" -eq 0 ] || SUDO="sudo"
     $SUDO apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq povray >/dev/null
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq povray time >/dev/null
 fi
 if [ ! -x .venv/bin/python ]; then
     python3 -m venv .venv

@@ -30,6 +30,11 @@ pub const MAX_MODEL_PLACEMENTS: u64 = 1 << 20;
 /// (`--texture-memory` raises it).
 pub const DEFAULT_TEXTURE_MIB: u64 = 1024;
 
+/// Most bytes of scene text one `[[objects]]` table may span, and most
+/// bytes of all the text outside them: each is parsed into a syntax tree
+/// about ten times its size. Large geometry belongs in a model file.
+pub const MAX_TABLE_TEXT: usize = 16 << 20;
+
 /// The limits as the help text and docs state them.
 pub fn describe() -> String {
     format!(
@@ -37,7 +42,9 @@ pub fn describe() -> String {
          max_depth 1..={MAX_DEPTH}; sphere-light samples 1..={MAX_LIGHT_SAMPLES}; coordinates within \
          ±{MAX_COORDINATE:e} and lengths, radii and scale factors in [{MIN_LENGTH:e}, {MAX_COORDINATE:e}] \
          (after transforms); colours, intensities and coefficients at most {MAX_VALUE:e}; \
-         {MAX_MODEL_PLACEMENTS} placements per model file; {DEFAULT_TEXTURE_MIB} MiB of textures \
-         unless --texture-memory says otherwise."
+         {MAX_MODEL_PLACEMENTS} placements per model file; {} MiB of scene text per [[objects]] \
+         table and outside them; {DEFAULT_TEXTURE_MIB} MiB of textures unless --texture-memory \
+         says otherwise.",
+        MAX_TABLE_TEXT >> 20
     )
 }

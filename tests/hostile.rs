@@ -551,3 +551,80 @@ fn out_of_range_model_placements_are_errors_not_silently_moved_or_dropped() {
     std::fs::write(d.path().join("scene.toml"), scene).unwrap();
     assert_refused(d.path(), &[], &["objects[0]", "out of range"]);
 }
+
+/// A valid scene of `n` small spheres in `[[objects]]` tables.
+fn many_spheres(n: usize) -> String {
+    let mut s = String::from(
+        "[render]\nwidth = 8\nheight = 6\nspp = 1\n\
+         [camera]\nposition = [0, 0, 30]\nlook_at = [0, 0, 0]\n\
+         [materials.m]\ncolor = [0.8, 0.8, 0.8]\n\
+         [lights.l]\ntype = \"point\"\nposition = [10, 20, 30]\n",
+    );
+    for i in 0..n {
+        let x = (i as f64 * 0.618_034).fract() * 20.0 - 10.0;
+        let y = (i as f64 * 0.414_214).fract() * 20.0 - 10.0;
+        s.push_str(&format!(
+            "[[objects]]\ntype = \"sphere\"\nmaterial = \"m\"\ncenter = [{x:.4}, {y:.4}, 0]\nradius = 0.01\n"
+        ));
+    }
+    s
+}
+
+#[test]
+fn large_scene_text_is_read_table_by_table_within_limits() {
+    let dir = tempfile::tempdir().unwrap();
+    // An object whose table is larger than 16 MiB (a polygon of a million
+    // vertices, 23 MB) is refused before it is parsed, with its line.
+    let mut s = many_spheres(2);
+    s.push_str("[[objects]]\ntype = \"polygon\"\nmaterial = \"m\"\nvertices = [\n");
+    for i in 0..1_000_000 {
+        s.push_str(&format!("[{i}.25, 0.5, 0.75],\n"));
+    }
+    s.push_str("]\n");
+    std::fs::write(dir.path().join("scene.toml"), &s).unwrap();
+    let line = many_spheres(2).lines().count() + 1;
+    let err = assert_refused(
+        dir.path(),
+        &[],
+        &[
+            &format!("scene.toml:{line}:1"),
+            "MiB of text; at most 16 MiB",
+            "model file",
+        ],
+    );
+    assert_eq!(
+        err.lines().filter(|l| l.contains("error")).count(),
+        1,
+        "{err}"
+    );
+
+    // 20,000 spheres: loads, and a syntax error in one table and a bad
+    // value in another are both reported, each at its own line.
+    let good = many_spheres(20_000);
+    std::fs::write(dir.path().join("scene.toml"), &good).unwrap();
+    let o = prism(dir.path(), &["check", "scene.toml"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let bad = good
+        .replacen(
+            "radius = 0.01\n[[objects]]",
+            "radius = 0.01\n[[objects]]\n= 3",
+            1,
+        )
+        .replacen("radius = 0.01", "radius = 0.01\nradius = 2", 1);
+    std::fs::write(dir.path().join("scene.toml"), &bad).unwrap();
+    let first = bad.lines().position(|l| l == "radius = 2").unwrap() + 1;
+    let second = bad.lines().position(|l| l == "= 3").unwrap() + 1;
+    let err = assert_refused(
+        dir.path(),
+        &[],
+        &[
+            &format!("scene.toml:{first}:1: error: duplicate key `radius`"),
+            &format!("scene.toml:{second}:1"),
+        ],
+    );
+    assert_eq!(
+        err.lines().filter(|l| l.contains("error")).count(),
+        2,
+        "{err}"
+    );
+}

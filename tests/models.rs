@@ -42,7 +42,7 @@ fn mesh_instances(scene: &Scene) -> Vec<&prism::geometry::MeshInstance> {
         .primitives()
         .iter()
         .filter_map(|p| match &p.shape {
-            Shape::Mesh(m) => Some(m),
+            Shape::Mesh(m) => Some(&**m),
             _ => None,
         })
         .collect()

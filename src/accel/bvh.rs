@@ -127,24 +127,28 @@ struct BuildItem {
 }
 
 impl Bvh {
-    /// Builds a tree over items with the given bounds (item i = bounds[i]).
-    pub fn build(bounds: &[Aabb]) -> Self {
-        if bounds.is_empty() {
-            return Bvh::default();
-        }
+    /// Builds a tree over items with the given bounds (item i is the i-th
+    /// box). Takes an iterator so that callers need not hold a copy of the
+    /// boxes besides the builder's own.
+    pub fn build(bounds: impl IntoIterator<Item = Aabb>) -> Self {
         let mut items: Vec<BuildItem> = bounds
-            .iter()
+            .into_iter()
             .enumerate()
             .map(|(i, b)| BuildItem {
-                bounds: *b,
+                bounds: b,
                 centroid: b.centroid(),
                 index: i as u32,
             })
             .collect();
+        if items.is_empty() {
+            return Bvh::default();
+        }
+        let bounds = items.iter().fold(Aabb::EMPTY, |b, i| b.union(&i.bounds));
         let nodes = build_node(&mut items, 0);
         let wide = wide::collapse(&nodes);
+        drop(nodes);
         Bvh {
-            bounds: bounds.iter().fold(Aabb::EMPTY, |b, i| b.union(i)),
+            bounds,
             stack_need: wide::stack_need(&wide),
             wide,
             order: items.iter().map(|i| i.index).collect(),
@@ -391,7 +395,7 @@ mod tests {
     fn every_item_sits_in_exactly_one_leaf_inside_its_ancestors() {
         for n in [1, 2, 3, 5, 17, 1000, 40_000] {
             let boxes = random_boxes(n, n as u64);
-            let bvh = Bvh::build(&boxes);
+            let bvh = Bvh::build(boxes.iter().copied());
             let mut seen = vec![0; n];
             for &i in bvh.order() {
                 seen[i as usize] += 1;
@@ -422,7 +426,7 @@ mod tests {
     #[test]
     fn traversals_match_brute_force() {
         let boxes = random_boxes(3000, 99);
-        let bvh = Bvh::build(&boxes);
+        let bvh = Bvh::build(boxes.iter().copied());
         let mut rng = PixelRng::new(5, 5, 5);
         for _ in 0..2000 {
             let o = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 120.0 - 10.0;
@@ -471,7 +475,7 @@ mod tests {
                 }
             })
             .collect();
-        let bvh = Bvh::build(&boxes);
+        let bvh = Bvh::build(boxes.iter().copied());
         assert!(
             bvh.stack_need <= 3 * (MEDIAN_DEPTH + 14) + 4,
             "stack need {}",
@@ -490,12 +494,12 @@ mod tests {
         // Above the threshold the subtrees are built with rayon::join; the
         // result must not depend on that.
         let boxes = random_boxes(PARALLEL_THRESHOLD * 3, 7);
-        let a = Bvh::build(&boxes);
+        let a = Bvh::build(boxes.iter().copied());
         let b = rayon::ThreadPoolBuilder::new()
             .num_threads(1)
             .build()
             .unwrap()
-            .install(|| Bvh::build(&boxes));
+            .install(|| Bvh::build(boxes.iter().copied()));
         assert_eq!(a, b);
     }
 }

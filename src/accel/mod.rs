@@ -32,19 +32,13 @@ impl Aggregate {
     /// Collects `primitives` and builds the BVH over the bounded ones;
     /// their indices are the `primitive` field of hits.
     pub fn new(primitives: Vec<Primitive>) -> Self {
-        let mut bounded = Vec::new();
-        let mut boxes = Vec::new();
-        let mut unbounded = Vec::new();
-        for (i, p) in primitives.iter().enumerate() {
-            match p.shape.bounds() {
-                Some(b) => {
-                    bounded.push(i as u32);
-                    boxes.push(b);
-                }
-                None => unbounded.push(i as u32),
-            }
-        }
-        let bvh = Bvh::build(&boxes);
+        let (bounded, unbounded): (Vec<u32>, Vec<u32>) = (0..primitives.len() as u32)
+            .partition(|&i| primitives[i as usize].shape.bounds().is_some());
+        let bvh = Bvh::build(
+            bounded
+                .iter()
+                .filter_map(|&i| primitives[i as usize].shape.bounds()),
+        );
         let leaf_primitives = bvh
             .order()
             .iter()

@@ -139,11 +139,11 @@ impl Mesh {
                 });
             }
         }
-        let boxes: Vec<Aabb> = triangles
-            .iter()
-            .map(|t| Aabb::from_points(t.iter().map(|&i| positions[i as usize])))
-            .collect();
-        let bvh = Bvh::build(&boxes);
+        let bvh = Bvh::build(
+            triangles
+                .iter()
+                .map(|t| Aabb::from_points(t.iter().map(|&i| positions[i as usize]))),
+        );
         // Store triangles in leaf order, so leaves index them directly.
         let ordered: Vec<[u32; 3]> = bvh.order().iter().map(|&i| triangles[i as usize]).collect();
         let materials = if materials.is_empty() {

@@ -43,13 +43,15 @@ use crate::math::Transform;
 use crate::render::RenderSettings;
 use crate::shading::{Fresnel, Highlight, Material, Texture};
 
-/// Builds the runtime scene; `None` if any problem was recorded.
-pub fn build(
+/// Checks the scene and builds everything but its acceleration structure;
+/// `None` if any problem was recorded. [`Checked::finish`] builds the rest,
+/// after the caller has let go of the source text.
+pub fn check(
     file: SceneFile,
     base_dir: &Path,
     options: &LoadOptions,
     diags: &mut Diagnostics,
-) -> Option<Scene> {
+) -> Option<Checked> {
     let mut c = Check {
         diags,
         base_dir: base_dir.to_path_buf(),
@@ -89,12 +91,19 @@ pub fn build(
         .iter()
         .filter_map(|(name, d)| c.light(name, d))
         .collect();
-    let primitives = file
-        .objects
-        .iter()
-        .enumerate()
-        .flat_map(|(i, o)| c.object(i, o, &material_index, &file.unparsed))
-        .collect();
+    let mut primitives: Vec<Primitive> =
+        Vec::with_capacity(file.objects.len() + file.object_tables.len());
+    for (i, o) in file.objects.iter().enumerate() {
+        primitives.extend(c.object(i, o, &material_index, &file.unparsed));
+    }
+    // Each table is parsed, built and its syntax tree dropped in turn.
+    for (i, range) in file.object_tables.iter().enumerate() {
+        c.diags.set_offset(range.start);
+        if let Some(o) = super::load::object(range.clone(), c.diags) {
+            primitives.extend(c.object(i, &o, &material_index, &file.unparsed));
+        }
+        c.diags.set_offset(0);
+    }
     let camera = camera.or(c.model_camera);
     // A [camera] that failed to parse is already reported; a model that
     // failed to load may have been the one to bring the camera.
@@ -114,25 +123,43 @@ pub fn build(
         return None;
     }
     let camera = camera?;
-    let build_start = std::time::Instant::now();
-    let aggregate = Aggregate::new(primitives);
-    let inventory = super::Inventory {
-        build_time: build_start.elapsed(),
-        textures: c.resources.texture_count(),
-        texture_bytes: c.resources.texture_bytes(),
-    };
-    Some(Scene {
-        camera,
-        aggregate,
-        inventory,
-        materials: c.materials,
-        warnings: c.warnings,
-        lights,
-        background,
-        ambient,
-        transparent_shadows: file.render.transparent_shadows.unwrap_or(false),
-        settings,
+    Some(Checked {
+        primitives,
+        scene: Scene {
+            camera,
+            aggregate: Aggregate::default(),
+            inventory: super::Inventory {
+                build_time: std::time::Duration::ZERO,
+                textures: c.resources.texture_count(),
+                texture_bytes: c.resources.texture_bytes(),
+            },
+            materials: c.materials,
+            warnings: c.warnings,
+            lights,
+            background,
+            ambient,
+            transparent_shadows: file.render.transparent_shadows.unwrap_or(false),
+            settings,
+        },
     })
+}
+
+/// A checked scene whose primitives still wait for their BVH.
+pub struct Checked {
+    primitives: Vec<Primitive>,
+    /// Everything else, with an empty aggregate.
+    scene: Scene,
+}
+
+impl Checked {
+    /// Builds the acceleration structure: the scene is ready to render.
+    pub fn finish(self) -> Scene {
+        let start = std::time::Instant::now();
+        let mut scene = self.scene;
+        scene.aggregate = Aggregate::new(self.primitives);
+        scene.inventory.build_time = start.elapsed();
+        scene
+    }
 }
 
 struct Check<'d, 's> {
@@ -665,11 +692,11 @@ impl Check<'_, '_> {
                     }
                 },
             };
-            let shape = Shape::Mesh(MeshInstance {
+            let shape = Shape::Mesh(Box::new(MeshInstance {
                 mesh: loaded.meshes[*mesh].clone(),
                 transform,
                 materials: materials.clone(),
-            });
+            }));
             if !self.within_range(&shape, desc, label) {
                 return Vec::new();
             }
@@ -741,9 +768,9 @@ impl Check<'_, '_> {
                             DQuat::IDENTITY,
                             center,
                         );
-                        Shape::Ellipsoid(Ellipsoid {
+                        Shape::Ellipsoid(Box::new(Ellipsoid {
                             transform: Transform::from_affine(transform.to_world * local)?,
-                        })
+                        }))
                     }
                 }
             }
@@ -785,7 +812,7 @@ impl Check<'_, '_> {
                     .map(|v| transform.point(DVec3::from_array(*v)))
                     .collect();
                 match Polygon::new(world) {
-                    Ok(p) => Shape::Polygon(p),
+                    Ok(p) => Shape::Polygon(Box::new(p)),
                     Err(e) => {
                         self.error(vertices.span(), format!("{label}: {e}"));
                         return None;

@@ -64,6 +64,9 @@ impl fmt::Display for DiagnosticList<'_> {
 pub struct Diagnostics<'a> {
     source: &'a str,
     found: Vec<(Range<usize>, String)>,
+    /// Added to every span recorded: the start of the piece of `source`
+    /// being parsed on its own (one `[[objects]]` table).
+    offset: usize,
 }
 
 impl<'a> Diagnostics<'a> {
@@ -72,7 +75,22 @@ impl<'a> Diagnostics<'a> {
         Diagnostics {
             source,
             found: Vec::new(),
+            offset: 0,
         }
+    }
+
+    /// The whole text the spans point into.
+    pub fn source(&self) -> &'a str {
+        self.source
+    }
+
+    /// From now on, spans are relative to byte `offset` of the source.
+    pub fn set_offset(&mut self, offset: usize) {
+        self.offset = offset;
+    }
+
+    fn absolute(&self, span: Range<usize>) -> Range<usize> {
+        span.start + self.offset..span.end + self.offset
     }
 
     /// Records a problem at `span`. Messages are cut to a readable length:
@@ -84,13 +102,14 @@ impl<'a> Diagnostics<'a> {
             message.truncate(end);
             message.push_str("… (cut)");
         }
+        let span = self.absolute(span);
         self.found.push((span, message));
     }
 
     /// The source text at `span`, cut to `max` characters (for naming a key
     /// an error points at).
     pub fn text_at(&self, span: Range<usize>, max: usize) -> String {
-        let text = self.source.get(span).unwrap_or_default();
+        let text = self.source.get(self.absolute(span)).unwrap_or_default();
         match text.char_indices().nth(max) {
             None => text.to_string(),
             Some((end, _)) => format!("{}…", &text[..end]),

@@ -3,6 +3,7 @@
 //! validation pass can point at them. docs/scene-format.md documents every key.
 
 use std::collections::{BTreeMap, BTreeSet};
+use std::ops::Range;
 
 use serde::Deserialize;
 use toml::Spanned;
@@ -27,8 +28,12 @@ pub struct SceneFile {
     pub unparsed: BTreeSet<String>,
     /// `[lights.NAME]`.
     pub lights: BTreeMap<String, Spanned<LightDesc>>,
-    /// `[[objects]]`.
+    /// Objects given inline (`objects = [{ ... }]`), parsed with the rest.
     pub objects: Vec<Spanned<ObjectDesc>>,
+    /// The byte ranges of the `[[objects]]` tables in the source: each is
+    /// parsed (by `load::object`) only when the builder reaches it, so a
+    /// million objects never stand as a million syntax trees at once.
+    pub object_tables: Vec<Range<usize>>,
 }
 
 /// `[render]`: image and tracing settings.

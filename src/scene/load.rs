@@ -1,32 +1,41 @@
 //! TOML text → [`SceneFile`], section by section, so that one bad material
 //! or object does not hide the problems of the others.
 
+use std::ops::Range;
+
 use serde::de::DeserializeOwned;
 use toml::Spanned;
 use toml::de::{DeTable, DeValue, ValueDeserializer};
 
 use super::error::Diagnostics;
-use super::format::SceneFile;
+use super::format::{ObjectDesc, SceneFile};
+use super::tables::Tables;
+use crate::limits::MAX_TABLE_TEXT;
 
 const SECTIONS: &str = "`render`, `camera`, `materials`, `lights` or `objects`";
 
-/// Parses `source` into sections, recording every problem found in `diags`.
-/// Returns `None` for a syntax error (nothing after it can be trusted).
+/// Parses `source` into sections, recording every problem found in `diags`;
+/// the `[[objects]]` tables are only located (see [`object`]). Returns
+/// `None` for a syntax error outside them (nothing after it can be trusted).
 pub fn parse(source: &str, diags: &mut Diagnostics) -> Option<SceneFile> {
-    let (doc, errors) = DeTable::parse_recoverable(source);
+    let tables = Tables::find(source);
+    let rest_len = tables.rest_len(source.len());
+    if rest_len > MAX_TABLE_TEXT {
+        diags.error(
+            0..0,
+            format!(
+                "the scene's text outside [[objects]] tables is {} MiB; at most {} MiB is read \
+                 (large geometry belongs in a model file: type = \"mesh\")",
+                rest_len >> 20,
+                MAX_TABLE_TEXT >> 20
+            ),
+        );
+        return None;
+    }
+    let rest = tables.rest(source);
+    let (doc, errors) = DeTable::parse_recoverable(rest.as_deref().unwrap_or(source));
     if !errors.is_empty() {
-        for e in errors {
-            let span = e.span().unwrap_or(0..0);
-            let message = match e.message() {
-                // The parser does not say which key; the span points at it.
-                "duplicate key" => format!(
-                    "duplicate key `{}`: each key may appear once in a table",
-                    diags.text_at(span.clone(), 60).trim()
-                ),
-                m => m.to_string(),
-            };
-            diags.error(span, message);
-        }
+        report_syntax(errors, diags);
         return None;
     }
     let mut file = SceneFile::default();
@@ -55,6 +64,10 @@ pub fn parse(source: &str, diags: &mut Diagnostics) -> Option<SceneFile> {
                     }
                 }
             }
+            "objects" if !tables.objects.is_empty() => diags.error(
+                key.span(),
+                "`objects` is given here and also as [[objects]] tables; use one form",
+            ),
             "objects" => match value.get_ref() {
                 DeValue::Array(items) => {
                     file.objects = items.iter().filter_map(|v| deserialize(v, diags)).collect();
@@ -73,7 +86,56 @@ pub fn parse(source: &str, diags: &mut Diagnostics) -> Option<SceneFile> {
             ),
         }
     }
+    file.object_tables = tables.objects;
     Some(file)
+}
+
+/// Parses the one `[[objects]]` table at `range` of the source. Spans are
+/// relative to `range.start`: the caller sets that offset on `diags` (and
+/// keeps it while building the object, whose spans are relative too).
+pub fn object(range: Range<usize>, diags: &mut Diagnostics) -> Option<Spanned<ObjectDesc>> {
+    if range.len() > MAX_TABLE_TEXT {
+        diags.error(
+            0..0,
+            format!(
+                "this object's table is {} MiB of text; at most {} MiB is read \
+                 (large geometry belongs in a model file: type = \"mesh\")",
+                range.len() >> 20,
+                MAX_TABLE_TEXT >> 20
+            ),
+        );
+        return None;
+    }
+    let text = diags.source().get(range).unwrap_or_default();
+    let (doc, errors) = DeTable::parse_recoverable(text);
+    if !errors.is_empty() {
+        report_syntax(errors, diags);
+        return None;
+    }
+    // The text is one `[[objects]]` header with its keys and sub-tables.
+    let item = doc.get_ref().iter().find_map(|(key, value)| {
+        match (key.get_ref().as_ref(), value.get_ref()) {
+            ("objects", DeValue::Array(items)) => items.first(),
+            _ => None,
+        }
+    })?;
+    deserialize(item, diags)
+}
+
+/// Records the TOML parser's syntax errors.
+fn report_syntax(errors: Vec<toml::de::Error>, diags: &mut Diagnostics) {
+    for e in errors {
+        let span = e.span().unwrap_or(0..0);
+        let message = match e.message() {
+            // The parser does not say which key; the span points at it.
+            "duplicate key" => format!(
+                "duplicate key `{}`: each key may appear once in a table",
+                diags.text_at(span.clone(), 60).trim()
+            ),
+            m => m.to_string(),
+        };
+        diags.error(span, message);
+    }
 }
 
 /// The entries of a `[section.NAME]` table.

@@ -8,6 +8,7 @@ pub mod format;
 pub mod load;
 pub mod models;
 pub mod resources;
+pub mod tables;
 
 pub use error::{Diagnostic, SceneError};
 pub use resources::LoadOptions;
@@ -141,16 +142,7 @@ impl Scene {
         base_dir: &Path,
         options: &LoadOptions,
     ) -> Result<Scene, SceneError> {
-        let mut diags = error::Diagnostics::new(source);
-        let scene = load::parse(source, &mut diags)
-            .and_then(|file| build::build(file, base_dir, options, &mut diags));
-        match scene {
-            Some(scene) if diags.is_empty() => Ok(scene),
-            _ => Err(SceneError::Invalid {
-                origin: origin.to_string(),
-                diagnostics: diags.into_diagnostics(),
-            }),
-        }
+        check(source, origin, base_dir, options).map(build::Checked::finish)
     }
 
     /// Reads and builds the scene file at `path`.
@@ -193,7 +185,11 @@ impl Scene {
                     .parent()
                     .filter(|p| !p.as_os_str().is_empty())
                     .unwrap_or(Path::new("."));
-                Scene::from_toml_with(&source, &origin, base_dir, options)
+                let checked = check(&source, &origin, base_dir, options);
+                // The text can be large (a million objects): let it go
+                // before the BVH is built.
+                drop(source);
+                checked.map(build::Checked::finish)
             }
             Err(e) => {
                 let valid = std::str::from_utf8(&e.as_bytes()[..e.utf8_error().valid_up_to()])
@@ -214,6 +210,25 @@ impl Scene {
     /// The built-in demo scene.
     pub fn demo() -> Scene {
         Scene::from_toml(DEFAULT_SCENE, "<built-in scene>").expect("the built-in scene is valid")
+    }
+}
+
+/// Parses and checks scene text: everything but the BVH.
+fn check(
+    source: &str,
+    origin: &str,
+    base_dir: &Path,
+    options: &LoadOptions,
+) -> Result<build::Checked, SceneError> {
+    let mut diags = error::Diagnostics::new(source);
+    let checked = load::parse(source, &mut diags)
+        .and_then(|file| build::check(file, base_dir, options, &mut diags));
+    match checked {
+        Some(checked) if diags.is_empty() => Ok(checked),
+        _ => Err(SceneError::Invalid {
+            origin: origin.to_string(),
+            diagnostics: diags.into_diagnostics(),
+        }),
     }
 }
 
@@ -266,6 +281,46 @@ mod tests {
             "type = \"sphere\"\ntransform = [{ matrix = [[2, 0, 0, 1], [0, 2, 0, 0], [0, 0, 2, 0], [0, 0, 0, 1]] }]",
         );
         assert_eq!(by_matrix, scaled_then_moved);
+    }
+
+    #[test]
+    fn object_tables_parse_alone_as_they_would_in_the_whole_file() {
+        // Sub-tables of an object (`[[objects.transform]]`) stay with it,
+        // and sections after the objects are still read.
+        let by_tables = build(
+            "[[objects]]\ntype = \"sphere\"\nmaterial = \"m\"\n\
+             [[objects.transform]]\nscale = 2\n[[objects.transform]]\ntranslate = [1, 0, 0]\n\
+             [lights.l]\ntype = \"point\"\nposition = [0, 5, 0]\n",
+        )
+        .unwrap();
+        // Root keys come before the first header.
+        let inline = Scene::from_toml(
+            &format!(
+                "objects = [{{ type = \"sphere\", material = \"m\", transform = [{{ scale = 2 }}, \
+                 {{ translate = [1, 0, 0] }}] }}]\n{HEAD}[lights.l]\ntype = \"point\"\nposition = [0, 5, 0]\n"
+            ),
+            "t.toml",
+        )
+        .unwrap();
+        assert_eq!(
+            by_tables.aggregate.primitives(),
+            inline.aggregate.primitives()
+        );
+        assert_eq!(by_tables.lights.len(), 1);
+        // Both forms at once: one error, at the inline key.
+        let both = Scene::from_toml(
+            &format!("objects = []\n{HEAD}[[objects]]\ntype = \"sphere\"\nmaterial = \"m\"\n"),
+            "t.toml",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            both.contains(
+                "t.toml:1:1: error: `objects` is given here and also as [[objects]] tables"
+            ),
+            "{both}"
+        );
+        assert_eq!(both.matches("error").count(), 1, "{both}");
     }
 
     #[test]
