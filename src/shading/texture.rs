@@ -48,6 +48,18 @@ pub fn srgb_to_linear(c: f64) -> f64 {
     }
 }
 
+/// A float texel channel as a surface colour: float images (EXR, HDR) can
+/// hold NaN, infinities and negative values, which a colour cannot be. NaN
+/// and negatives read as 0, and values are capped at the scene's largest
+/// colour value.
+pub fn colour_value(c: f32) -> f32 {
+    if c > 0.0 {
+        c.min(crate::limits::MAX_VALUE as f32)
+    } else {
+        0.0
+    }
+}
+
 impl ImageTexture {
     /// Decodes the image `reader` holds (PNG, JPEG, EXR, HDR, PNM), if it
     /// fits in `budget` bytes: the size is read from the header and checked
@@ -80,9 +92,15 @@ impl ImageTexture {
         let texels = if eight_bit {
             Texels::Srgb8(image.into_rgb8().pixels().map(|p| p.0).collect())
         } else if matches!(color, ColorType::Rgb32F | ColorType::Rgba32F) {
-            Texels::Linear(image.into_rgb32f().pixels().map(|p| p.0).collect())
+            Texels::Linear(
+                image
+                    .into_rgb32f()
+                    .pixels()
+                    .map(|p| p.0.map(colour_value))
+                    .collect(),
+            )
         } else {
-            let decode = |c: f32| srgb_to_linear(f64::from(c)) as f32;
+            let decode = |c: f32| colour_value(srgb_to_linear(f64::from(c)) as f32);
             Texels::Linear(
                 image
                     .into_rgb32f()
@@ -108,13 +126,14 @@ impl ImageTexture {
         }
     }
 
-    /// A texture from linear texels, row-major from the top.
+    /// A texture from linear texels, row-major from the top (each channel
+    /// taken through [`colour_value`]).
     pub fn from_linear(width: usize, height: usize, texels: Vec<[f32; 3]>) -> Self {
         assert_eq!(texels.len(), width * height);
         ImageTexture {
             width,
             height,
-            texels: Texels::Linear(texels),
+            texels: Texels::Linear(texels.into_iter().map(|t| t.map(colour_value)).collect()),
         }
     }
 
@@ -231,6 +250,19 @@ impl Texture {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn float_texels_that_are_no_colour_are_made_one() {
+        assert_eq!(colour_value(f32::NAN), 0.0);
+        assert_eq!(colour_value(-3.0), 0.0);
+        assert_eq!(colour_value(f32::INFINITY), 1e15);
+        assert_eq!(colour_value(0.25), 0.25);
+        let t = ImageTexture::from_linear(2, 1, vec![[f32::NAN, -1.0, 2.0], [f32::INFINITY; 3]]);
+        for u in [0.0, 0.3, 0.5, 0.8, 1.0] {
+            let c = t.lookup(DVec2::new(u, 0.5));
+            assert!(c.is_finite() && c.min_element() >= 0.0, "{c}");
+        }
+    }
 
     #[test]
     fn bilinear_lookup_interpolates_and_repeats() {
