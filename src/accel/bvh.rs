@@ -199,6 +199,19 @@ impl Bvh {
         }
     }
 
+    /// Visits the item positions in every leaf whose box passes `keep`,
+    /// descending only into boxes that pass it; stops and returns false as
+    /// soon as `visit` does.
+    pub fn visit(&self, keep: impl Fn(&Aabb) -> bool, visit: impl FnMut(usize) -> bool) -> bool {
+        if self.stack_need <= wide::STACK {
+            let mut stack = [0u32; wide::STACK];
+            wide::visit(&self.wide, &mut stack, keep, visit)
+        } else {
+            let mut stack = vec![0u32; self.stack_need];
+            wide::visit(&self.wide, &mut stack, keep, visit)
+        }
+    }
+
     /// Any-hit traversal: true as soon as `test(position)` is true for an
     /// item in a leaf the ray meets within `t_max`.
     #[inline]

@@ -7,9 +7,11 @@
 
 pub mod bvh;
 mod primitive;
+mod shadow;
 mod wide;
 
 pub use primitive::{Primitive, Shape};
+pub use shadow::ShadowCandidates;
 
 use bvh::{BoxRay, Bvh};
 

@@ -291,3 +291,57 @@ pub fn any(
         current = stack[top] as usize;
     }
 }
+
+/// Visits, in no particular order, the item positions of every leaf whose
+/// box passes `keep`, descending only into boxes that pass it. Stops and
+/// returns false as soon as `visit` returns false.
+pub fn visit(
+    wide: &[WideNode],
+    stack: &mut [u32],
+    keep: impl Fn(&crate::geometry::Aabb) -> bool,
+    mut visit: impl FnMut(usize) -> bool,
+) -> bool {
+    if wide.is_empty() {
+        return true;
+    }
+    let mut top = 0usize;
+    let mut current = 0usize;
+    loop {
+        let node = &wide[current];
+        for lane in 0..WIDTH {
+            if node.valid & (1 << lane) == 0 {
+                continue;
+            }
+            let bounds = crate::geometry::Aabb {
+                min: glam::DVec3::new(
+                    node.min_x[lane].into(),
+                    node.min_y[lane].into(),
+                    node.min_z[lane].into(),
+                ),
+                max: glam::DVec3::new(
+                    node.max_x[lane].into(),
+                    node.max_y[lane].into(),
+                    node.max_z[lane].into(),
+                ),
+            };
+            if !keep(&bounds) {
+                continue;
+            }
+            let (child, count) = (node.child[lane], node.count[lane]);
+            if count > 0 {
+                let start = child as usize;
+                if !(start..start + count as usize).all(&mut visit) {
+                    return false;
+                }
+            } else {
+                stack[top] = child;
+                top += 1;
+            }
+        }
+        if top == 0 {
+            return true;
+        }
+        top -= 1;
+        current = stack[top] as usize;
+    }
+}

@@ -156,6 +156,17 @@ impl LightSampler {
         }
     }
 
+    /// For a sphere light, the vector from the shading point to its
+    /// centre and its radius: every feeler lies in their convex hull.
+    pub fn light_sphere(&self) -> Option<(DVec3, f64)> {
+        match *self {
+            LightSampler::Fixed(_) => None,
+            LightSampler::Cone {
+                to_center, radius, ..
+            } => Some((to_center, radius)),
+        }
+    }
+
     /// Sample `index` of [`count`](Self::count).
     #[inline]
     pub fn sample(&self, index: usize, rng: &mut PixelRng) -> LightSample {

@@ -9,12 +9,17 @@ use glam::DVec3;
 
 use super::optics::{fresnel_dielectric, reflect, refract, schlick};
 use super::{Fresnel, Material};
+use crate::accel::ShadowCandidates;
 use crate::geometry::Hit;
 use crate::lights::{Light, LightSample};
 use crate::math::Ray;
 use crate::math::rng::PixelRng;
 use crate::render::RayStats;
 use crate::scene::Scene;
+
+/// From this many feelers to a sphere light on, the scene is culled
+/// against their hull first (below, the BVH query alone is cheaper).
+const CULL_FROM: usize = 4;
 
 /// Nested media deeper than this are not tracked (the innermost are lost).
 const MAX_NESTING: usize = 8;
@@ -279,6 +284,19 @@ impl<'a> Whitted<'a> {
     ) -> DVec3 {
         let sampler = light.sampler(point.hit.point);
         let count = sampler.count();
+        // Many feelers to one sphere light: cull the scene against their
+        // hull once, then test each against what is left.
+        let mut candidates = match sampler.light_sphere() {
+            Some((to_center, radius)) if count >= CULL_FROM && !self.scene.transparent_shadows => {
+                self.scene.aggregate.shadow_candidates(
+                    point.hit.point,
+                    point.hit.primitive,
+                    to_center,
+                    radius,
+                )
+            }
+            _ => None,
+        };
         let mut sum = DVec3::ZERO;
         for i in 0..count {
             let sample = sampler.sample(i, rng);
@@ -286,7 +304,7 @@ impl<'a> Whitted<'a> {
                 // The light is behind the surface: no feeler needed.
                 continue;
             }
-            let visibility = self.visibility(&point.hit, &sample, stats);
+            let visibility = self.visibility(&point.hit, &sample, candidates.as_mut(), stats);
             if visibility != DVec3::ZERO {
                 sum += visibility
                     * sample.falloff
@@ -302,16 +320,22 @@ impl<'a> Whitted<'a> {
     /// colour channel. Classic Whitted: any object blocks (0 or 1), found by
     /// an any-hit query. With transparent shadows, each transparent blocker
     /// passes its kt (so tinted glass casts a tinted shadow).
-    fn visibility(&self, hit: &Hit, sample: &LightSample, stats: &mut RayStats) -> DVec3 {
+    fn visibility(
+        &self,
+        hit: &Hit,
+        sample: &LightSample,
+        candidates: Option<&mut ShadowCandidates>,
+        stats: &mut RayStats,
+    ) -> DVec3 {
         let mut feeler = Ray::spawn(hit.point, hit.normal, sample.direction);
         let mut remaining = sample.distance - (feeler.origin - hit.point).length();
         if !self.scene.transparent_shadows {
             stats.shadow += 1;
-            return if self.scene.aggregate.any_hit(&feeler, remaining) {
-                DVec3::ZERO
-            } else {
-                DVec3::ONE
+            let blocked = match candidates {
+                Some(c) => c.any_hit(&self.scene.aggregate, &feeler, remaining),
+                None => self.scene.aggregate.any_hit(&feeler, remaining),
             };
+            return if blocked { DVec3::ZERO } else { DVec3::ONE };
         }
         let mut transmission = DVec3::ONE;
         loop {

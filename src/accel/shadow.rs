@@ -1,0 +1,304 @@
+//! Shadow feelers towards a sphere light share their origin and end on the
+//! light: every one of them lies in the convex hull of the shading point
+//! and the light's sphere. Only primitives whose bounds meet that hull can
+//! block any of them, so the scene is culled against it once per shading
+//! point and light, and each feeler is tested against the few candidates
+//! left, the last blocker first (POV-Ray's light buffer idea). The answer
+//! is the one the full any-hit query gives: the culling is conservative,
+//! with margins for rounding and for the feelers' pushed-off origins.
+
+use glam::DVec3;
+
+use super::{Aggregate, Shape};
+use crate::geometry::Aabb;
+use crate::math::Ray;
+use crate::math::ray::RELATIVE_OFFSET;
+
+/// Past this many candidates the BVH query is used instead.
+const MAX_CANDIDATES: usize = 16;
+
+/// The primitives that may block a shading point's feelers towards one
+/// sphere light.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadowCandidates {
+    primitives: [u32; MAX_CANDIDATES],
+    len: usize,
+}
+
+/// The convex hull of a point (the apex) and a sphere (the light), with
+/// what the conservative tests need.
+#[derive(Clone, Copy, Debug)]
+struct FeelerHull {
+    apex: DVec3,
+    /// Unit vector from the apex to the light's centre.
+    axis: DVec3,
+    /// Distance from the apex to the light's centre.
+    distance: f64,
+    /// Half-angle of the cone of directions to the light.
+    half_angle: f64,
+    radius: f64,
+    /// Slack for rounding and pushed-off origins, in length units.
+    slack: f64,
+}
+
+impl FeelerHull {
+    /// Whether a sphere (centre, radius) may meet the hull.
+    fn may_meet_sphere(&self, center: DVec3, radius: f64) -> bool {
+        let radius = radius + self.slack;
+        let v = center - self.apex;
+        let length = v.length();
+        if length <= radius {
+            return true;
+        }
+        let along = v.dot(self.axis);
+        // Every feeler point lies between the apex and the light's far side.
+        if along + radius < 0.0 || along - radius > self.distance + self.radius {
+            return false;
+        }
+        // Within the cone widened by the sphere's angular radius (a
+        // millionth of a radian more, for rounding in acos and asin).
+        let angle = (along / length).clamp(-1.0, 1.0).acos();
+        let spread = (radius / length).clamp(0.0, 1.0).asin();
+        angle <= self.half_angle + spread + 1e-6
+    }
+
+    fn may_meet_box(&self, b: &Aabb) -> bool {
+        self.may_meet_sphere(b.centroid(), 0.5 * (b.max - b.min).length())
+    }
+
+    /// Whether the plane n·x = d may cross a feeler: not when the apex and
+    /// the whole light lie on the same side of it.
+    fn may_cross_plane(&self, normal: DVec3, d: f64) -> bool {
+        let apex = normal.dot(self.apex) - d;
+        let light = normal.dot(self.apex + self.axis * self.distance) - d;
+        let clear = self.radius + self.slack;
+        !((apex >= 0.0 && light > clear) || (apex <= 0.0 && light < -clear))
+    }
+}
+
+impl FeelerHull {
+    /// Whether the whole light lies strictly beyond the plane through the
+    /// apex with normal `outward`: then every feeler leaves that way.
+    fn beyond_tangent_plane(&self, outward: DVec3) -> bool {
+        outward.dot(self.axis) * self.distance > self.radius + self.slack
+    }
+}
+
+impl Aggregate {
+    /// The candidates that may block feelers from `apex`, a point on
+    /// primitive `on`, to the sphere light at `apex + to_center` of
+    /// `radius`; `None` when there are more than a handful (then the BVH
+    /// serves better).
+    pub fn shadow_candidates(
+        &self,
+        apex: DVec3,
+        on: u32,
+        to_center: DVec3,
+        radius: f64,
+    ) -> Option<ShadowCandidates> {
+        let distance = to_center.length();
+        if distance <= radius || !distance.is_finite() {
+            return None;
+        }
+        let scale = crate::math::max_abs_component(apex)
+            .max(crate::math::max_abs_component(apex + to_center))
+            .max(1.0);
+        let hull = FeelerHull {
+            apex,
+            axis: to_center / distance,
+            distance,
+            half_angle: (radius / distance).asin(),
+            radius,
+            // Origins are pushed off by RELATIVE_OFFSET·scale; f64 rounding
+            // of the tests is far below a millionth of the scale.
+            slack: 2.0 * RELATIVE_OFFSET * scale + 1e-6 * (distance + radius),
+        };
+        let mut found = ShadowCandidates {
+            primitives: [0; MAX_CANDIDATES],
+            len: 0,
+        };
+        for &i in &self.unbounded {
+            let blocks = match &self.primitives[i as usize].shape {
+                Shape::Plane(p) => hull.may_cross_plane(p.normal, p.distance),
+                _ => true,
+            };
+            if blocks && !found.push(i) {
+                return None;
+            }
+        }
+        let complete = self.bvh.visit(
+            |b| hull.may_meet_box(b),
+            |position| {
+                let i = self.leaf_primitives[position];
+                let shape = &self.primitives[i as usize].shape;
+                let may_block = match shape {
+                    // A polygon lies in its plane: the plane test culls the
+                    // floor under every point above it.
+                    Shape::Polygon(p) => hull.may_cross_plane(p.plane.normal, p.plane.distance),
+                    // Feelers that leave a sphere through its tangent plane
+                    // at the point they start from cannot meet it again.
+                    Shape::Sphere(s) if i == on => {
+                        !hull.beyond_tangent_plane((apex - s.center) / s.radius)
+                    }
+                    _ => true,
+                } && shape.bounds().is_none_or(|b| hull.may_meet_box(&b));
+                !may_block || found.push(i)
+            },
+        );
+        complete.then_some(found)
+    }
+}
+
+impl ShadowCandidates {
+    /// Adds `primitive`; false when full.
+    fn push(&mut self, primitive: u32) -> bool {
+        if self.len == MAX_CANDIDATES {
+            return false;
+        }
+        self.primitives[self.len] = primitive;
+        self.len += 1;
+        true
+    }
+
+    /// How many primitives may block.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether nothing can block: every feeler reaches the light.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Whether a candidate blocks `feeler` within `t_max`, as
+    /// [`Aggregate::any_hit`] would answer. The blocker found moves to the
+    /// front: the next feeler, close beside this one, likely meets it too.
+    pub fn any_hit(&mut self, aggregate: &Aggregate, feeler: &Ray, t_max: f64) -> bool {
+        for k in 0..self.len {
+            let i = self.primitives[k];
+            if aggregate.primitives[i as usize]
+                .shape
+                .occludes(feeler, 0.0, t_max)
+            {
+                self.primitives[..=k].rotate_right(1);
+                return true;
+            }
+        }
+        false
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::Primitive;
+    use crate::geometry::sphere::sphere_roots;
+    use crate::geometry::{Plane, Sphere};
+    use crate::math::Frame;
+    use crate::math::rng::PixelRng;
+    use crate::math::sampling::{Strata, uniform_cone};
+
+    fn sphere(center: DVec3, radius: f64) -> Primitive {
+        Primitive {
+            shape: Shape::Sphere(Sphere { center, radius }),
+            material: 0,
+        }
+    }
+
+    /// Random spheres and a floor; many shading points on and above the
+    /// floor; a sphere light. Every feeler gets the same answer from the
+    /// candidates as from the full query.
+    #[test]
+    fn candidates_answer_every_feeler_as_the_full_query_does() {
+        let mut rng = PixelRng::new(7, 3, 1);
+        let mut primitives: Vec<Primitive> = (0..40)
+            .map(|_| {
+                let c = DVec3::new(
+                    rng.uniform() * 8.0 - 4.0,
+                    rng.uniform() * 3.0,
+                    rng.uniform() * 8.0 - 4.0,
+                );
+                sphere(c, 0.05 + rng.uniform() * 0.5)
+            })
+            .collect();
+        primitives.push(Primitive {
+            shape: Shape::Plane(Plane {
+                normal: DVec3::Y,
+                distance: 0.0,
+            }),
+            material: 0,
+        });
+        let aggregate = Aggregate::new(primitives);
+        let (center, radius) = (DVec3::new(1.0, 6.0, 0.5), 0.8);
+        let (mut culled, mut compared, mut blocked) = (0, 0, 0);
+        for k in 0..600 {
+            // Points on the floor, in the air, and on the spheres (facing
+            // the light or not: feelers from the far side go through).
+            let (apex, on, normal) = if k % 3 == 2 {
+                let on = rng.below(40) as u32;
+                let Shape::Sphere(s) = aggregate.primitives()[on as usize].shape else {
+                    unreachable!()
+                };
+                let u = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 2.0 - 1.0;
+                let outward = u.try_normalize().unwrap_or(DVec3::Y);
+                (s.center + s.radius * outward, on, outward)
+            } else {
+                let y = if k % 3 == 0 { 0.0 } else { rng.uniform() * 4.0 };
+                let apex = DVec3::new(rng.uniform() * 10.0 - 5.0, y, rng.uniform() * 10.0 - 5.0);
+                (apex, 40, DVec3::Y)
+            };
+            let to_center = center - apex;
+            let Some(mut candidates) = aggregate.shadow_candidates(apex, on, to_center, radius)
+            else {
+                continue;
+            };
+            culled += 1;
+            let d2 = to_center.length_squared();
+            let frame = Frame::from_z(to_center / d2.sqrt());
+            let cos_max = (1.0 - radius * radius / d2).sqrt();
+            let strata = Strata::new(64);
+            for i in 0..64 {
+                let direction = uniform_cone(&frame, cos_max, strata.point(i, &mut rng));
+                let distance = sphere_roots(DVec3::ZERO, direction, to_center, radius)
+                    .map_or(to_center.dot(direction), |(t0, _)| t0);
+                let feeler = Ray::spawn(apex, normal, direction);
+                let t_max = distance - (feeler.origin - apex).length();
+                let full = aggregate.any_hit(&feeler, t_max);
+                assert_eq!(candidates.any_hit(&aggregate, &feeler, t_max), full);
+                compared += 1;
+                blocked += usize::from(full);
+            }
+        }
+        // The test means something: most points were culled to a few
+        // candidates, and some feelers were blocked, some not.
+        assert!(culled > 450, "{culled}");
+        assert!(
+            blocked > compared / 20 && blocked < compared * 19 / 20,
+            "{blocked}/{compared}"
+        );
+    }
+
+    #[test]
+    fn a_point_under_an_open_sky_has_no_candidates_and_the_floor_is_not_one() {
+        let aggregate = Aggregate::new(vec![
+            sphere(DVec3::new(5.0, 1.0, 0.0), 1.0),
+            Primitive {
+                shape: Shape::Plane(Plane {
+                    normal: DVec3::Y,
+                    distance: 0.0,
+                }),
+                material: 0,
+            },
+        ]);
+        let c = aggregate
+            .shadow_candidates(DVec3::ZERO, 1, DVec3::new(0.0, 5.0, 0.0), 1.0)
+            .unwrap();
+        assert!(c.is_empty());
+        // The ball beside the light's cone is a candidate once the light
+        // moves behind it.
+        let c = aggregate
+            .shadow_candidates(DVec3::ZERO, 1, DVec3::new(10.0, 2.0, 0.0), 1.0)
+            .unwrap();
+        assert_eq!(c.len(), 1);
+    }
+}
