@@ -4,7 +4,6 @@
 
 use glam::DVec3;
 
-use crate::geometry::sphere::sphere_roots;
 use crate::math::Frame;
 use crate::math::rng::PixelRng;
 use crate::math::sampling::{Strata, uniform_cone};
@@ -181,16 +180,61 @@ impl LightSampler {
                 strata,
             } => {
                 let direction = uniform_cone(&frame, cos_max, strata.point(index, rng));
-                // The feeler ends where the direction meets the sphere; at the
-                // cone's rim rounding may miss it, then the tangent point.
-                let distance = sphere_roots(DVec3::ZERO, direction, to_center, radius)
-                    .map_or(to_center.dot(direction), |(t0, _)| t0);
+                let distance = distance_to_sphere(direction, to_center, radius);
                 LightSample {
                     direction,
                     distance,
                     falloff,
                 }
             }
+        }
+    }
+}
+
+/// How far a feeler from the shading point in unit `direction` travels to
+/// the light's sphere (centre at `to_center` from the point, `radius`; the
+/// point outside): the nearer root of |t·D − C|² = r². With b = D·C and
+/// h² = r² − |C − b·D|² (the distance of the line from the centre, which
+/// does not cancel), t = (|C|² − r²)/(b + h), the product form that does not
+/// cancel when the point is close to the light either; one division where
+/// the general quadratic takes three. At the cone's rim rounding may put
+/// the line outside the sphere: then the tangent point, t = b.
+#[inline]
+pub fn distance_to_sphere(direction: DVec3, to_center: DVec3, radius: f64) -> f64 {
+    let b = direction.dot(to_center);
+    let h2 = radius * radius - (to_center - b * direction).length_squared();
+    if h2 <= 0.0 {
+        return b;
+    }
+    let d = to_center.length();
+    (d - radius) * (d + radius) / (b + h2.sqrt())
+}
+
+#[cfg(test)]
+mod distance_tests {
+    use super::*;
+    use crate::geometry::sphere::sphere_roots;
+
+    #[test]
+    fn distance_to_sphere_is_the_near_root_of_the_quadratic() {
+        let mut rng = PixelRng::new(11, 2, 3);
+        for _ in 0..10_000 {
+            let radius = 0.01 + rng.uniform() * 2.0;
+            // From just outside the light to far away.
+            let d = radius * (1.0 + 1e-6 + rng.uniform() * 100.0);
+            let axis = (DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) - 0.5).normalize();
+            let to_center = axis * d;
+            let frame = Frame::from_z(axis);
+            let cos_max = (1.0 - radius * radius / (d * d)).sqrt();
+            let u = glam::DVec2::new(rng.uniform(), rng.uniform());
+            let direction = uniform_cone(&frame, cos_max, u);
+            let (t0, _) = sphere_roots(DVec3::ZERO, direction, to_center, radius)
+                .unwrap_or((to_center.dot(direction), 0.0));
+            let t = distance_to_sphere(direction, to_center, radius);
+            assert!((t - t0).abs() <= 1e-9 * d, "{t} vs {t0}");
+            // The end point lies on the sphere.
+            let miss = ((direction * t - to_center).length() - radius).abs();
+            assert!(miss <= 1e-9 * d, "{miss}");
         }
     }
 }
