@@ -51,6 +51,7 @@ impl Shape {
     pub fn occludes(&self, ray: &Ray, t_min: f64, t_max: f64) -> bool {
         match self {
             Shape::Mesh(m) => m.any_hit(ray, t_min, t_max),
+            Shape::Sphere(s) => s.occludes(ray, t_min, t_max),
             other => other.intersect(ray, t_min, t_max).is_some(),
         }
     }

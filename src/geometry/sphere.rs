@@ -73,6 +73,15 @@ impl Sphere {
         ))
     }
 
+    /// Whether the ray meets the sphere with t in (t_min, t_max): the
+    /// roots of [`intersect`](Self::intersect) without the hit's normal.
+    #[inline]
+    pub fn occludes(&self, ray: &Ray, t_min: f64, t_max: f64) -> bool {
+        sphere_roots(ray.origin, ray.direction, self.center, self.radius)
+            .and_then(|roots| nearest_root(roots, t_min, t_max))
+            .is_some()
+    }
+
     /// The bounding box.
     pub fn bounds(&self) -> Aabb {
         Aabb {
