@@ -11,7 +11,7 @@ mod shadow;
 mod wide;
 
 pub use primitive::{Primitive, Shape};
-pub use shadow::ShadowCandidates;
+pub use shadow::{Blocker, ShadowCandidates};
 
 use bvh::{BoxRay, Bvh};
 

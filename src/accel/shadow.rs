@@ -25,6 +25,17 @@ pub struct ShadowCandidates {
     len: usize,
 }
 
+/// A surface a transparent-shadow feeler passes through.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Blocker {
+    /// Distance along the feeler.
+    pub t: f64,
+    /// Geometric normal there.
+    pub normal: DVec3,
+    /// Material index.
+    pub material: u32,
+}
+
 /// The convex hull of a point (the apex) and a sphere (the light), with
 /// what the conservative tests need.
 #[derive(Clone, Copy, Debug)]
@@ -100,8 +111,10 @@ impl Aggregate {
         if distance <= radius || !distance.is_finite() {
             return None;
         }
+        // Feelers start at the apex or, with transparent shadows, anywhere
+        // on the way to the light: no coordinate exceeds this.
         let scale = crate::math::max_abs_component(apex)
-            .max(crate::math::max_abs_component(apex + to_center))
+            .max(crate::math::max_abs_component(apex + to_center) + radius)
             .max(1.0);
         let hull = FeelerHull {
             apex,
@@ -170,6 +183,27 @@ impl ShadowCandidates {
         self.len == 0
     }
 
+    /// The nearest candidate `feeler` meets within `t_max`, as
+    /// [`Aggregate::closest_hit`] would find it (for transparent shadows,
+    /// which need every surface on the way): its distance, geometric normal
+    /// and material, without the texture coordinates a feeler has no use for.
+    pub fn nearest(&self, aggregate: &Aggregate, feeler: &Ray, t_max: f64) -> Option<Blocker> {
+        let mut found = None;
+        let mut closest = t_max;
+        for &i in &self.primitives[..self.len] {
+            let p = &aggregate.primitives[i as usize];
+            if let Some(h) = p.shape.intersect(feeler, 0.0, closest) {
+                closest = h.t;
+                found = Some(Blocker {
+                    t: h.t,
+                    normal: h.normal,
+                    material: h.material.unwrap_or(p.material),
+                });
+            }
+        }
+        found
+    }
+
     /// Whether a candidate blocks `feeler` within `t_max`, as
     /// [`Aggregate::any_hit`] would answer. The blocker found moves to the
     /// front: the next feeler, close beside this one, likely meets it too.
@@ -209,7 +243,7 @@ mod tests {
     /// floor; a sphere light. Every feeler gets the same answer from the
     /// candidates as from the full query.
     #[test]
-    fn candidates_answer_every_feeler_as_the_full_query_does() {
+    fn candidates_answer_every_feeler_as_the_full_queries_do() {
         let mut rng = PixelRng::new(7, 3, 1);
         let mut primitives: Vec<Primitive> = (0..40)
             .map(|_| {
@@ -265,6 +299,13 @@ mod tests {
                 let t_max = distance - (feeler.origin - apex).length();
                 let full = aggregate.any_hit(&feeler, t_max);
                 assert_eq!(candidates.any_hit(&aggregate, &feeler, t_max), full);
+                // Transparent shadows walk every surface: the same nearest.
+                let nearest = aggregate.closest_hit(&feeler, t_max).map(|h| Blocker {
+                    t: h.t,
+                    normal: h.normal,
+                    material: h.material,
+                });
+                assert_eq!(candidates.nearest(&aggregate, &feeler, t_max), nearest);
                 compared += 1;
                 blocked += usize::from(full);
             }

@@ -9,7 +9,7 @@ use glam::DVec3;
 
 use super::optics::{fresnel_dielectric, reflect, refract, schlick};
 use super::{Fresnel, Material};
-use crate::accel::ShadowCandidates;
+use crate::accel::{Blocker, ShadowCandidates};
 use crate::geometry::Hit;
 use crate::lights::{Light, LightSample};
 use crate::math::Ray;
@@ -287,14 +287,10 @@ impl<'a> Whitted<'a> {
         // Many feelers to one sphere light: cull the scene against their
         // hull once, then test each against what is left.
         let mut candidates = match sampler.light_sphere() {
-            Some((to_center, radius)) if count >= CULL_FROM && !self.scene.transparent_shadows => {
-                self.scene.aggregate.shadow_candidates(
-                    point.hit.point,
-                    point.hit.primitive,
-                    to_center,
-                    radius,
-                )
-            }
+            Some((to_center, radius)) if count >= CULL_FROM => self
+                .scene
+                .aggregate
+                .shadow_candidates(point.hit.point, point.hit.primitive, to_center, radius),
             _ => None,
         };
         let mut sum = DVec3::ZERO;
@@ -324,14 +320,14 @@ impl<'a> Whitted<'a> {
         &self,
         hit: &Hit,
         sample: &LightSample,
-        candidates: Option<&mut ShadowCandidates>,
+        mut candidates: Option<&mut ShadowCandidates>,
         stats: &mut RayStats,
     ) -> DVec3 {
         let mut feeler = Ray::spawn(hit.point, hit.normal, sample.direction);
         let mut remaining = sample.distance - (feeler.origin - hit.point).length();
         if !self.scene.transparent_shadows {
             stats.shadow += 1;
-            let blocked = match candidates {
+            let blocked = match candidates.as_mut() {
                 Some(c) => c.any_hit(&self.scene.aggregate, &feeler, remaining),
                 None => self.scene.aggregate.any_hit(&feeler, remaining),
             };
@@ -340,15 +336,28 @@ impl<'a> Whitted<'a> {
         let mut transmission = DVec3::ONE;
         loop {
             stats.shadow += 1;
-            let Some(blocker) = self.scene.aggregate.closest_hit(&feeler, remaining) else {
+            let blocker = match &candidates {
+                Some(c) => c.nearest(&self.scene.aggregate, &feeler, remaining),
+                None => self
+                    .scene
+                    .aggregate
+                    .closest_hit(&feeler, remaining)
+                    .map(|h| Blocker {
+                        t: h.t,
+                        normal: h.normal,
+                        material: h.material,
+                    }),
+            };
+            let Some(blocker) = blocker else {
                 return transmission;
             };
             transmission *= self.scene.materials[blocker.material as usize].kt;
             if transmission.max_element() < 1e-6 {
                 return DVec3::ZERO;
             }
-            let next = Ray::spawn(blocker.point, blocker.normal, sample.direction);
-            remaining -= blocker.t + (next.origin - blocker.point).length();
+            let point = feeler.at(blocker.t);
+            let next = Ray::spawn(point, blocker.normal, sample.direction);
+            remaining -= blocker.t + (next.origin - point).length();
             feeler = next;
         }
     }
