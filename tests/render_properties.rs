@@ -677,9 +677,10 @@ fn lossless_glass_vanishes_in_a_white_furnace() {
     }
 }
 
-/// An orthographic view straight down on a floor, lit by ambient light
-/// only, below `material`; the background is white.
-fn tinted_floor_pixel(material: &str, extra: &str) -> DVec3 {
+/// The one pixel of an orthographic view straight down on a floor of
+/// `material`, with no ambient light, a white background, `render` lines
+/// added to `[render]` and `more` (lights, objects) to the scene.
+fn floor_pixel(material: &str, render: &str, more: &str) -> DVec3 {
     let s = scene(&format!(
         r#"
         [render]
@@ -688,19 +689,20 @@ fn tinted_floor_pixel(material: &str, extra: &str) -> DVec3 {
         spp = 1
         ambient = [0, 0, 0]
         background = [1, 1, 1]
-        {extra}
+        {render}
         [camera]
         type = "orthographic"
-        position = [0, 5, 0]
+        position = [0, 1, 0]
         look_at = [0, 0, 0]
         up = [0, 0, -1]
         view_height = 0.1
-        [materials.m]
+        [materials.floor]
         {material}
         [[objects]]
         type = "plane"
-        material = "m"
+        material = "floor"
         normal = [0, 1, 0]
+        {more}
         "#
     ));
     film(&s, 1).get(0, 0)
@@ -710,13 +712,13 @@ fn tinted_floor_pixel(material: &str, extra: &str) -> DVec3 {
 fn a_coloured_kr_tints_the_reflection_and_a_number_stays_grey() {
     // A black mirror seen straight on reflects the white background back,
     // each channel weighted by its kr.
-    let gold = tinted_floor_pixel("kd = 0\nka = 0\nkr = [1.0, 0.766, 0.336]", "");
+    let gold = floor_pixel("kd = 0\nka = 0\nkr = [1.0, 0.766, 0.336]", "", "");
     assert_eq!(gold, DVec3::new(1.0, 0.766, 0.336));
-    let grey = tinted_floor_pixel("kd = 0\nka = 0\nkr = 0.5", "");
+    let grey = floor_pixel("kd = 0\nka = 0\nkr = 0.5", "", "");
     assert_eq!(grey, DVec3::splat(0.5));
     // The same as a triple of equal numbers, bit for bit.
     assert_eq!(
-        tinted_floor_pixel("kd = 0\nka = 0\nkr = [0.5, 0.5, 0.5]", ""),
+        floor_pixel("kd = 0\nka = 0\nkr = [0.5, 0.5, 0.5]", "", ""),
         grey
     );
 }
@@ -734,34 +736,11 @@ fn coloured_kt_filters_transparent_shadows_by_channel() {
         } else {
             ""
         };
-        let s = scene(&format!(
-            r#"
-            [render]
-            width = 1
-            height = 1
-            spp = 1
-            ambient = [0, 0, 0]
-            transparent_shadows = {transparent}
-            [camera]
-            type = "orthographic"
-            position = [0, 1, 0]
-            look_at = [0, 0, 0]
-            up = [0, 0, -1]
-            view_height = 0.1
-            [materials.white]
-            kd = 1
-            ka = 0
-            [lights.l]
-            type = "point"
-            position = [0, 4, 0]
-            [[objects]]
-            type = "plane"
-            material = "white"
-            normal = [0, 1, 0]
-            {pane}
-            "#
-        ));
-        film(&s, 1).get(0, 0)
+        floor_pixel(
+            "kd = 1\nka = 0",
+            &format!("transparent_shadows = {transparent}"),
+            &format!("[lights.l]\ntype = \"point\"\nposition = [0, 4, 0]\n{pane}"),
+        )
     };
     let open = lit(false, true);
     assert!(open.min_element() > 0.0);
