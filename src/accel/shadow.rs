@@ -17,6 +17,13 @@ use crate::math::ray::RELATIVE_OFFSET;
 /// Past this many candidates the BVH query is used instead.
 const MAX_CANDIDATES: usize = 16;
 
+/// Box and primitive tests the search for candidates may spend per feeler
+/// it serves. A feeler's own BVH query costs several, but in a dense scene
+/// the search fails (too many candidates) after spending its budget: one
+/// per feeler kept that loss within noise on a million spheres (bench note
+/// in docs/performance.md), where two cost 5 % and four 17 %.
+const BOX_TESTS_PER_FEELER: usize = 1;
+
 /// The primitives that may block a shading point's feelers towards one
 /// sphere light.
 #[derive(Clone, Copy, Debug)]
@@ -45,8 +52,10 @@ struct FeelerHull {
     axis: DVec3,
     /// Distance from the apex to the light's centre.
     distance: f64,
-    /// Half-angle of the cone of directions to the light.
-    half_angle: f64,
+    /// Sine and cosine of α, the half-angle of the cone of directions to
+    /// the light.
+    sin_alpha: f64,
+    cos_alpha: f64,
     radius: f64,
     /// Slack for rounding and pushed-off origins, in length units.
     slack: f64,
@@ -66,11 +75,13 @@ impl FeelerHull {
         if along + radius < 0.0 || along - radius > self.distance + self.radius {
             return false;
         }
-        // Within the cone widened by the sphere's angular radius (a
-        // millionth of a radian more, for rounding in acos and asin).
-        let angle = (along / length).clamp(-1.0, 1.0).acos();
-        let spread = (radius / length).clamp(0.0, 1.0).asin();
-        angle <= self.half_angle + spread + 1e-6
+        // Within the cone widened by the sphere's angular radius β: the
+        // angle θ to the axis is at most α + β. Both lie in [0, π], where
+        // cos decreases, so as cosines: cos θ ≥ cos α·cos β − sin α·sin β
+        // (a millionth less, for rounding).
+        let sin_beta = radius / length;
+        let cos_beta = (1.0 - sin_beta * sin_beta).max(0.0).sqrt();
+        along / length >= self.cos_alpha * cos_beta - self.sin_alpha * sin_beta - 1e-6
     }
 
     fn may_meet_box(&self, b: &Aabb) -> bool {
@@ -96,16 +107,17 @@ impl FeelerHull {
 }
 
 impl Aggregate {
-    /// The candidates that may block feelers from `apex`, a point on
-    /// primitive `on`, to the sphere light at `apex + to_center` of
-    /// `radius`; `None` when there are more than a handful (then the BVH
-    /// serves better).
+    /// The candidates that may block `feelers` feelers from `apex`, a point
+    /// on primitive `on`, to the sphere light at `apex + to_center` of
+    /// `radius`; `None` when there are more than a handful or finding them
+    /// costs more than the feelers would save (then the BVH serves better).
     pub fn shadow_candidates(
         &self,
         apex: DVec3,
         on: u32,
         to_center: DVec3,
         radius: f64,
+        feelers: usize,
     ) -> Option<ShadowCandidates> {
         let distance = to_center.length();
         if distance <= radius || !distance.is_finite() {
@@ -120,7 +132,8 @@ impl Aggregate {
             apex,
             axis: to_center / distance,
             distance,
-            half_angle: (radius / distance).asin(),
+            sin_alpha: radius / distance,
+            cos_alpha: (1.0 - (radius / distance).powi(2)).max(0.0).sqrt(),
             radius,
             // Origins are pushed off by RELATIVE_OFFSET·scale; f64 rounding
             // of the tests is far below a millionth of the scale.
@@ -139,8 +152,16 @@ impl Aggregate {
                 return None;
             }
         }
+        // The search may cost up to a few box tests per feeler it serves;
+        // past that (a dense scene around a wide cone), the BVH serves better.
+        let budget = std::cell::Cell::new(BOX_TESTS_PER_FEELER * feelers);
+        let within_budget = || {
+            let left = budget.get();
+            budget.set(left.saturating_sub(1));
+            left > 0
+        };
         let complete = self.bvh.visit(
-            |b| hull.may_meet_box(b),
+            |b| within_budget() && hull.may_meet_box(b),
             |position| {
                 let i = self.leaf_primitives[position];
                 let shape = &self.primitives[i as usize].shape;
@@ -155,10 +176,10 @@ impl Aggregate {
                     }
                     _ => true,
                 } && shape.bounds().is_none_or(|b| hull.may_meet_box(&b));
-                !may_block || found.push(i)
+                within_budget() && (!may_block || found.push(i))
             },
         );
-        complete.then_some(found)
+        (complete && budget.get() > 0).then_some(found)
     }
 }
 
@@ -282,7 +303,7 @@ mod tests {
                 (apex, 40, DVec3::Y)
             };
             let to_center = center - apex;
-            let Some(mut candidates) = aggregate.shadow_candidates(apex, on, to_center, radius)
+            let Some(mut candidates) = aggregate.shadow_candidates(apex, on, to_center, radius, 64)
             else {
                 continue;
             };
@@ -332,13 +353,13 @@ mod tests {
             },
         ]);
         let c = aggregate
-            .shadow_candidates(DVec3::ZERO, 1, DVec3::new(0.0, 5.0, 0.0), 1.0)
+            .shadow_candidates(DVec3::ZERO, 1, DVec3::new(0.0, 5.0, 0.0), 1.0, 16)
             .unwrap();
         assert!(c.is_empty());
         // The ball beside the light's cone is a candidate once the light
         // moves behind it.
         let c = aggregate
-            .shadow_candidates(DVec3::ZERO, 1, DVec3::new(10.0, 2.0, 0.0), 1.0)
+            .shadow_candidates(DVec3::ZERO, 1, DVec3::new(10.0, 2.0, 0.0), 1.0, 16)
             .unwrap();
         assert_eq!(c.len(), 1);
     }

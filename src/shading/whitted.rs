@@ -287,10 +287,15 @@ impl<'a> Whitted<'a> {
         // Many feelers to one sphere light: cull the scene against their
         // hull once, then test each against what is left.
         let mut candidates = match sampler.light_sphere() {
-            Some((to_center, radius)) if count >= CULL_FROM => self
-                .scene
-                .aggregate
-                .shadow_candidates(point.hit.point, point.hit.primitive, to_center, radius),
+            Some((to_center, radius)) if count >= CULL_FROM => {
+                self.scene.aggregate.shadow_candidates(
+                    point.hit.point,
+                    point.hit.primitive,
+                    to_center,
+                    radius,
+                    count,
+                )
+            }
             _ => None,
         };
         let mut sum = DVec3::ZERO;
