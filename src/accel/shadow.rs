@@ -96,9 +96,7 @@ impl FeelerHull {
         let clear = self.radius + self.slack;
         !((apex >= 0.0 && light > clear) || (apex <= 0.0 && light < -clear))
     }
-}
 
-impl FeelerHull {
     /// Whether the whole light lies strictly beyond the plane through the
     /// apex with normal `outward`: then every feeler leaves that way.
     fn beyond_tangent_plane(&self, outward: DVec3) -> bool {
@@ -152,8 +150,9 @@ impl Aggregate {
                 return None;
             }
         }
-        // The search may cost up to a few box tests per feeler it serves;
-        // past that (a dense scene around a wide cone), the BVH serves better.
+        // The search may spend BOX_TESTS_PER_FEELER tests per feeler it
+        // serves; past that (a dense scene around the cone), the BVH serves
+        // better.
         let budget = std::cell::Cell::new(BOX_TESTS_PER_FEELER * feelers);
         let within_budget = || {
             let left = budget.get();
