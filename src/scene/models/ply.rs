@@ -18,9 +18,26 @@ struct Vertex {
     uv: [f64; 2],
 }
 
+/// A face as read: triangles (nearly every face of a large model) inline,
+/// 16 bytes, other polygons and indices out of range as their list.
 #[derive(Default)]
-struct Face {
-    indices: Vec<i64>,
+enum Face {
+    #[default]
+    Empty,
+    Triangle([u32; 3]),
+    Polygon(Vec<i64>),
+}
+
+impl Face {
+    fn from_list(list: Vec<i64>) -> Face {
+        match list[..] {
+            [a, b, c] => match (u32::try_from(a), u32::try_from(b), u32::try_from(c)) {
+                (Ok(a), Ok(b), Ok(c)) => Face::Triangle([a, b, c]),
+                _ => Face::Polygon(list),
+            },
+            _ => Face::Polygon(list),
+        }
+    }
 }
 
 fn scalar(p: &Property) -> Option<f64> {
@@ -76,7 +93,7 @@ impl PropertyAccess for Face {
     fn set_property(&mut self, key: &str, property: Property) {
         if key == "vertex_indices" || key == "vertex_index" {
             if let Some(l) = list(property) {
-                self.indices = l;
+                *self = Face::from_list(l);
             }
         }
     }
@@ -135,20 +152,38 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
     let count = vertices.len();
     let mut triangles = Vec::with_capacity(faces.len());
     for (i, face) in faces.iter().enumerate() {
-        if face.indices.len() < 3 {
-            return Err(err(format!(
-                "face {i} has {} vertices; at least 3 are needed",
-                face.indices.len()
-            )));
-        }
-        if let Some(&bad) = face.indices.iter().find(|&&k| k < 0 || k as usize >= count) {
-            return Err(err(format!(
+        let out_of_range = |bad: i64| {
+            err(format!(
                 "face {i} refers to vertex {bad}, but there are {count} vertices"
-            )));
+            ))
+        };
+        match face {
+            Face::Triangle(t) => {
+                if let Some(&bad) = t.iter().find(|&&k| k as usize >= count) {
+                    return Err(out_of_range(i64::from(bad)));
+                }
+                triangles.push(*t);
+            }
+            Face::Empty | Face::Polygon(_) => {
+                let indices = match face {
+                    Face::Polygon(l) => &l[..],
+                    _ => &[],
+                };
+                if indices.len() < 3 {
+                    return Err(err(format!(
+                        "face {i} has {} vertices; at least 3 are needed",
+                        indices.len()
+                    )));
+                }
+                if let Some(&bad) = indices.iter().find(|&&k| k < 0 || k as usize >= count) {
+                    return Err(out_of_range(bad));
+                }
+                let polygon: Vec<u32> = indices.iter().map(|&k| k as u32).collect();
+                triangles.extend(fan(&polygon));
+            }
         }
-        let polygon: Vec<u32> = face.indices.iter().map(|&k| k as u32).collect();
-        triangles.extend(fan(&polygon));
     }
+    drop(faces);
     if let Some(i) = vertices
         .iter()
         .position(|v| !v.position.iter().all(|c| c.is_finite()))
