@@ -179,10 +179,9 @@ pub fn check_writable(path: &Path) -> Result<OutputFormat, ImageWriteError> {
             "is a directory; expected an image file name".into(),
         ));
     }
-    tempfile::Builder::new()
-        .prefix(".prism-")
-        .suffix(".part")
-        .tempfile_in(dir)
+    // An unnamed file (O_TMPFILE where the system has it): a signal that
+    // kills the process during the probe leaves nothing behind.
+    tempfile::tempfile_in(dir)
         .map_err(|e| unwritable(format!("cannot create files in {}: {e}", dir.display())))?;
     Ok(format)
 }
