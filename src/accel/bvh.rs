@@ -153,13 +153,17 @@ impl Bvh {
         }
         let bounds = items.iter().fold(Aabb::EMPTY, |b, i| b.union(&i.bounds));
         let nodes = build_node(&mut items, 0);
+        // Each transient goes as soon as it is used up: the items before
+        // the 4-wide copy is made, the binary nodes after.
+        let order = items.iter().map(|i| i.index).collect();
+        drop(items);
         let wide = wide::collapse(&nodes);
         drop(nodes);
         Bvh {
             bounds,
             stack_need: wide::stack_need(&wide),
             wide,
-            order: items.iter().map(|i| i.index).collect(),
+            order,
         }
     }
 
@@ -294,14 +298,21 @@ fn build_node(items: &mut [BuildItem], depth: usize) -> Vec<BvhNode> {
             build_node(right_items, depth + 1),
         )
     };
-    let mut nodes = Vec::with_capacity(1 + left.len() + right.len());
-    nodes.push(BvhNode::new(
-        &bounds,
-        (1 + left.len()) as u32,
+    // The parent goes in front of the left subtree, in its own buffer
+    // (grown in place where the allocator can), so the two halves and the
+    // whole are not all held at once.
+    let left_len = left.len();
+    let mut nodes = left;
+    nodes.reserve_exact(1 + right.len());
+    nodes.insert(
         0,
-        axis as u8,
-    ));
-    append(&mut nodes, left, 1, 0);
+        BvhNode::new(&bounds, (1 + left_len) as u32, 0, axis as u8),
+    );
+    for node in &mut nodes[1..] {
+        if node.count == 0 {
+            node.offset += 1;
+        }
+    }
     let base = nodes.len() as u32;
     append(&mut nodes, right, base, mid as u32);
     nodes
