@@ -64,27 +64,29 @@ impl WideNode {
     }
 }
 
-#[cfg(test)]
 impl WideNode {
+    /// The box of slot `lane`, widened to f64.
+    fn lane_box(&self, lane: usize) -> crate::geometry::Aabb {
+        crate::geometry::Aabb {
+            min: glam::DVec3::new(
+                self.min_x[lane].into(),
+                self.min_y[lane].into(),
+                self.min_z[lane].into(),
+            ),
+            max: glam::DVec3::new(
+                self.max_x[lane].into(),
+                self.max_y[lane].into(),
+                self.max_z[lane].into(),
+            ),
+        }
+    }
+
     /// The occupied slots as (box, child, count), for inspection.
+    #[cfg(test)]
     pub fn slots(&self) -> impl Iterator<Item = (crate::geometry::Aabb, u32, u16)> + '_ {
         (0..WIDTH)
             .filter(move |&i| self.valid & (1 << i) != 0)
-            .map(move |i| {
-                let b = crate::geometry::Aabb {
-                    min: glam::DVec3::new(
-                        self.min_x[i].into(),
-                        self.min_y[i].into(),
-                        self.min_z[i].into(),
-                    ),
-                    max: glam::DVec3::new(
-                        self.max_x[i].into(),
-                        self.max_y[i].into(),
-                        self.max_z[i].into(),
-                    ),
-                };
-                (b, self.child[i], self.count[i])
-            })
+            .map(move |i| (self.lane_box(i), self.child[i], self.count[i]))
     }
 }
 
@@ -312,19 +314,7 @@ pub fn visit(
             if node.valid & (1 << lane) == 0 {
                 continue;
             }
-            let bounds = crate::geometry::Aabb {
-                min: glam::DVec3::new(
-                    node.min_x[lane].into(),
-                    node.min_y[lane].into(),
-                    node.min_z[lane].into(),
-                ),
-                max: glam::DVec3::new(
-                    node.max_x[lane].into(),
-                    node.max_y[lane].into(),
-                    node.max_z[lane].into(),
-                ),
-            };
-            if !keep(&bounds) {
+            if !keep(&node.lane_box(lane)) {
                 continue;
             }
             let (child, count) = (node.child[lane], node.count[lane]);

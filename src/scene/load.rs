@@ -23,12 +23,7 @@ pub fn parse(source: &str, diags: &mut Diagnostics) -> Option<SceneFile> {
     if rest_len > MAX_TABLE_TEXT {
         diags.error(
             0..0,
-            format!(
-                "the scene's text outside [[objects]] tables is {} MiB; at most {} MiB is read \
-                 (large geometry belongs in a model file: type = \"mesh\")",
-                rest_len >> 20,
-                MAX_TABLE_TEXT >> 20
-            ),
+            too_large("the scene's text outside [[objects]] tables", rest_len),
         );
         return None;
     }
@@ -95,15 +90,7 @@ pub fn parse(source: &str, diags: &mut Diagnostics) -> Option<SceneFile> {
 /// keeps it while building the object, whose spans are relative too).
 pub fn object(range: Range<usize>, diags: &mut Diagnostics) -> Option<Spanned<ObjectDesc>> {
     if range.len() > MAX_TABLE_TEXT {
-        diags.error(
-            0..0,
-            format!(
-                "this object's table is {} MiB of text; at most {} MiB is read \
-                 (large geometry belongs in a model file: type = \"mesh\")",
-                range.len() >> 20,
-                MAX_TABLE_TEXT >> 20
-            ),
-        );
+        diags.error(0..0, too_large("this object's table", range.len()));
         return None;
     }
     let text = diags.source().get(range).unwrap_or_default();
@@ -120,6 +107,16 @@ pub fn object(range: Range<usize>, diags: &mut Diagnostics) -> Option<Spanned<Ob
         }
     })?;
     deserialize(item, diags)
+}
+
+/// The message for text over [`MAX_TABLE_TEXT`].
+fn too_large(what: &str, bytes: usize) -> String {
+    format!(
+        "{what} is {} MiB of text; at most {} MiB is read \
+         (large geometry belongs in a model file: type = \"mesh\")",
+        bytes >> 20,
+        MAX_TABLE_TEXT >> 20
+    )
 }
 
 /// Records the TOML parser's syntax errors.

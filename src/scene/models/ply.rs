@@ -20,12 +20,15 @@ struct Vertex {
 
 /// A face as read: triangles (nearly every face of a large model) inline,
 /// 16 bytes, other polygons and indices out of range as their list.
-#[derive(Default)]
 enum Face {
-    #[default]
-    Empty,
     Triangle([u32; 3]),
     Polygon(Vec<i64>),
+}
+
+impl Default for Face {
+    fn default() -> Self {
+        Face::Polygon(Vec::new())
+    }
 }
 
 impl Face {
@@ -164,11 +167,7 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
                 }
                 triangles.push(*t);
             }
-            Face::Empty | Face::Polygon(_) => {
-                let indices = match face {
-                    Face::Polygon(l) => &l[..],
-                    _ => &[],
-                };
+            Face::Polygon(indices) => {
                 if indices.len() < 3 {
                     return Err(err(format!(
                         "face {i} has {} vertices; at least 3 are needed",
