@@ -97,7 +97,7 @@ fn main() -> anyhow::Result<()> {
     let eye = center + DVec3::new(0.3, 0.4, 1.0).normalize() * radius * 2.6;
     let frame = Frame::from_z((center - eye).normalize());
     let side = 1024usize;
-    let half = (20f64).to_radians().tan();
+    let half = prism::math::transcendental::tan(20f64.to_radians());
     let mut primary = Rays {
         origins: vec![],
         directions: vec![],

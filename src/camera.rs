@@ -3,6 +3,7 @@
 use glam::DVec3;
 
 use crate::math::Ray;
+use crate::math::transcendental;
 
 /// Which film axis the field of view spans.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -79,7 +80,7 @@ impl Camera {
         let sy = 1.0 - 2.0 * y / h;
         match self.projection {
             Projection::Perspective { fov, axis } => {
-                let half = (0.5 * fov).tan();
+                let half = transcendental::tan(0.5 * fov);
                 let (half_w, half_h) = match axis {
                     FovAxis::Vertical => (half * aspect, half),
                     FovAxis::Horizontal => (half, half / aspect),

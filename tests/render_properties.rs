@@ -4,6 +4,8 @@
 //! total-internal-reflection disk, energy in a white furnace, invisibility
 //! of index-matched glass, symmetry, and determinism across thread counts.
 
+#![allow(clippy::disallowed_methods)] // references computed with the platform's functions
+
 use glam::DVec3;
 use prism::render::{Film, render_pixel};
 use prism::shading::whitted::{Whitted, WhittedSettings};

@@ -5,6 +5,7 @@ use glam::{DVec2, DVec3};
 use crate::geometry::{Aabb, Ellipsoid, MeshInstance, Plane, Polygon, ShapeHit, Sphere};
 use crate::math::Frame;
 use crate::math::Ray;
+use crate::math::transcendental;
 
 /// Every kind of shape Prism can intersect. The variants that carry a
 /// transform or vertex lists are boxed so that a primitive stays 48 bytes:
@@ -63,8 +64,8 @@ impl Shape {
     pub fn uv(&self, point: DVec3, hit: &ShapeHit) -> DVec2 {
         let spherical = |p: DVec3| {
             DVec2::new(
-                0.5 + p.z.atan2(p.x) / std::f64::consts::TAU,
-                0.5 + p.y.clamp(-1.0, 1.0).asin() / std::f64::consts::PI,
+                0.5 + transcendental::atan2(p.z, p.x) / std::f64::consts::TAU,
+                0.5 + transcendental::asin(p.y.clamp(-1.0, 1.0)) / std::f64::consts::PI,
             )
         };
         let planar = |normal: DVec3| {

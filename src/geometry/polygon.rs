@@ -267,6 +267,7 @@ impl Polygon {
 }
 
 #[cfg(test)]
+#[allow(clippy::disallowed_methods)] // hand-worked values use the platform's functions
 mod tests {
     use super::*;
     use crate::math::rng::PixelRng;

@@ -5,6 +5,7 @@ pub mod frame;
 pub mod ray;
 pub mod rng;
 pub mod sampling;
+pub mod transcendental;
 pub mod transform;
 
 pub use frame::Frame;

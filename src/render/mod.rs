@@ -2,10 +2,14 @@
 //! pixel draws from its own random stream, so the result does not depend on
 //! the thread count or the tile order.
 
+mod checkpoint;
 mod film;
+mod region;
 mod stats;
 
+pub use checkpoint::Checkpoint;
 pub use film::Film;
+pub use region::Region;
 pub use stats::RayStats;
 
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -39,6 +43,9 @@ pub struct RenderSettings {
     pub min_weight: f64,
     /// Seed of the per-pixel random streams.
     pub seed: u64,
+    /// Animation frame; keys the random streams with the seed (frame 0's
+    /// streams are those of a still).
+    pub frame: u32,
     /// Worker threads; `None` uses every core.
     pub threads: Option<usize>,
 }
@@ -75,6 +82,18 @@ impl RenderSettings {
     }
 }
 
+impl RenderSettings {
+    /// The settings that change pixels, besides the seed and the frame, in
+    /// one canonical line: `640x480 spp=4 max_depth=8 min_weight=0.001`.
+    /// (Threads and regions change no pixel.)
+    pub fn pixel_key(&self) -> String {
+        format!(
+            "{}x{} spp={} max_depth={} min_weight={}",
+            self.width, self.height, self.spp, self.max_depth, self.min_weight
+        )
+    }
+}
+
 impl Default for RenderSettings {
     fn default() -> Self {
         RenderSettings {
@@ -84,6 +103,7 @@ impl Default for RenderSettings {
             max_depth: 8,
             min_weight: 1e-3,
             seed: 0,
+            frame: 0,
             threads: None,
         }
     }
@@ -118,36 +138,20 @@ pub struct RenderOutput {
     pub elapsed: Duration,
 }
 
-/// A rectangle of pixels, the unit of parallel work.
-#[derive(Clone, Copy, Debug)]
-struct Tile {
-    x0: u32,
-    y0: u32,
-    x1: u32,
-    y1: u32,
-}
-
-fn tiles(width: u32, height: u32) -> Vec<Tile> {
-    let mut tiles = Vec::new();
-    for y0 in (0..height).step_by(TILE as usize) {
-        for x0 in (0..width).step_by(TILE as usize) {
-            tiles.push(Tile {
-                x0,
-                y0,
-                x1: (x0 + TILE).min(width),
-                y1: (y0 + TILE).min(height),
-            });
-        }
-    }
-    tiles
-}
-
 /// What the caller of [`render`] sees of it while it runs, and how it stops
 /// it. Both methods are called from the worker threads.
 pub trait RenderObserver: Sync {
-    /// A tile is finished; `pixels_done` pixels are finished so far.
-    fn tile_done(&self, pixels_done: u64) {
-        let _ = pixels_done;
+    /// A tile is finished: its pixels, row-major; `pixels_done` pixels of
+    /// the render are finished so far.
+    fn tile_done(&self, tile: Region, pixels: &[DVec3], pixels_done: u64) {
+        let _ = (tile, pixels, pixels_done);
+    }
+
+    /// The pixels of `tile` if an earlier, interrupted run finished it (a
+    /// checkpoint); the render then takes them instead of tracing it.
+    fn finished_before(&self, tile: Region) -> Option<Vec<DVec3>> {
+        let _ = tile;
+        None
     }
 
     /// Whether the render should stop (checked before every row of pixels).
@@ -165,7 +169,30 @@ pub fn render(
     settings: &RenderSettings,
     observer: &dyn RenderObserver,
 ) -> Result<RenderOutput, RenderError> {
+    render_region(
+        scene,
+        settings,
+        Region::full(settings.width, settings.height),
+        observer,
+    )
+}
+
+/// Renders the pixels of `region` only; each is bit-identical to the same
+/// pixel of the whole frame's render (every pixel has its own random
+/// stream), so regions rendered apart can be merged.
+pub fn render_region(
+    scene: &Scene,
+    settings: &RenderSettings,
+    region: Region,
+    observer: &dyn RenderObserver,
+) -> Result<RenderOutput, RenderError> {
     settings.check().map_err(RenderError::Settings)?;
+    if !Region::full(settings.width, settings.height).contains(&region) || region.area() == 0 {
+        return Err(RenderError::Settings(format!(
+            "region {region} is empty or outside the {}x{} image",
+            settings.width, settings.height
+        )));
+    }
     let start = Instant::now();
     let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(threads) = settings.threads {
@@ -183,13 +210,20 @@ pub fn render(
         },
     );
     let done = AtomicU64::new(0);
-    let rendered: Option<Vec<(Tile, Vec<DVec3>, RayStats)>> = pool.install(|| {
-        tiles(settings.width, settings.height)
+    let rendered: Option<Vec<(Region, Vec<DVec3>, RayStats)>> = pool.install(|| {
+        region
+            .tiles(TILE)
             .into_par_iter()
             .map(|tile| {
                 let mut stats = RayStats::default();
-                let mut pixels =
-                    Vec::with_capacity(((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize);
+                if let Some(pixels) = observer.finished_before(tile)
+                    && pixels.len() as u64 == tile.area()
+                {
+                    let n = pixels.len() as u64;
+                    observer.tile_done(tile, &pixels, done.fetch_add(n, Ordering::Relaxed) + n);
+                    return Some((tile, pixels, stats));
+                }
+                let mut pixels = Vec::with_capacity(tile.area() as usize);
                 for y in tile.y0..tile.y1 {
                     if observer.cancelled() {
                         return None;
@@ -199,21 +233,16 @@ pub fn render(
                     }
                 }
                 let n = pixels.len() as u64;
-                observer.tile_done(done.fetch_add(n, Ordering::Relaxed) + n);
+                observer.tile_done(tile, &pixels, done.fetch_add(n, Ordering::Relaxed) + n);
                 Some((tile, pixels, stats))
             })
             .collect()
     });
     let rendered = rendered.ok_or(RenderError::Cancelled)?;
-    let mut film = Film::new(settings.width, settings.height);
+    let mut film = Film::window(settings.width, settings.height, region);
     let mut stats = RayStats::default();
     for (tile, pixels, tile_stats) in rendered {
-        let mut values = pixels.into_iter();
-        for y in tile.y0..tile.y1 {
-            for x in tile.x0..tile.x1 {
-                film.set(x, y, values.next().unwrap_or_default());
-            }
-        }
+        film.paste(tile, &pixels);
         stats += tile_stats;
     }
     Ok(RenderOutput {
@@ -233,7 +262,7 @@ pub fn render_pixel(
     y: u32,
     stats: &mut RayStats,
 ) -> DVec3 {
-    let mut rng = PixelRng::new(settings.seed, x, y);
+    let mut rng = PixelRng::new(frame_seed(settings.seed, settings.frame), x, y);
     let strata = Strata::new(settings.spp as usize);
     let spp = strata.len();
     let mut sum = DVec3::ZERO;
@@ -252,4 +281,16 @@ pub fn render_pixel(
         sum += tracer.radiance(&ray, &mut rng, stats);
     }
     sum / spp as f64
+}
+
+/// The seed of frame `frame`'s pixel streams: the scene's seed for frame
+/// 0 (so a still and an animation's first frame agree), otherwise the seed
+/// mixed with the frame number, so that every frame renders alone exactly
+/// as it does in a sequence.
+pub fn frame_seed(seed: u64, frame: u32) -> u64 {
+    if frame == 0 {
+        seed
+    } else {
+        seed ^ crate::math::rng::splitmix64(0x6672_616d_6500_0000 | u64::from(frame))
+    }
 }

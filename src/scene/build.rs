@@ -132,6 +132,8 @@ pub fn check(
                 build_time: std::time::Duration::ZERO,
                 textures: c.resources.texture_count(),
                 texture_bytes: c.resources.texture_bytes(),
+                files_read: c.resources.policy.files_read(),
+                content_hash: String::new(),
             },
             materials: c.materials,
             warnings: c.warnings,
@@ -152,6 +154,11 @@ pub struct Checked {
 }
 
 impl Checked {
+    /// What loading built and read so far.
+    pub fn inventory_mut(&mut self) -> &mut super::Inventory {
+        &mut self.scene.inventory
+    }
+
     /// Builds the acceleration structure: the scene is ready to render.
     pub fn finish(self) -> Scene {
         let start = std::time::Instant::now();
@@ -338,6 +345,7 @@ impl Check<'_, '_> {
                 UNIT_INTERVAL,
             ),
             seed: r.seed.as_ref().map_or(defaults.seed, |s| *s.get_ref()),
+            frame: 0,
             threads: None,
         }
     }

@@ -62,6 +62,12 @@ pub struct Inventory {
     pub textures: usize,
     /// Bytes of decoded texels.
     pub texture_bytes: u64,
+    /// Every file the scene read besides its own text (models, MTL,
+    /// textures), resolved, with the SHA-256 of its bytes.
+    pub files_read: Vec<resources::FileRead>,
+    /// SHA-256 (hex) over the scene text and every file it read, in read
+    /// order: equal hashes mean equal input, wherever the files lie.
+    pub content_hash: String,
 }
 
 /// Counts of what a scene holds, for `prism check` and the summary line.
@@ -213,6 +219,17 @@ impl Scene {
     }
 }
 
+/// SHA-256 (hex) of the scene text's digest followed by each read file's.
+fn content_hash(source: &str, files: &[resources::FileRead]) -> String {
+    use sha2::{Digest, Sha256};
+    let mut all = Sha256::new();
+    all.update(Sha256::digest(source.as_bytes()));
+    for file in files {
+        all.update(file.sha256);
+    }
+    all.finalize().iter().map(|b| format!("{b:02x}")).collect()
+}
+
 /// Parses and checks scene text: everything but the BVH.
 fn check(
     source: &str,
@@ -224,7 +241,11 @@ fn check(
     let checked = load::parse(source, &mut diags)
         .and_then(|file| build::check(file, base_dir, options, &mut diags));
     match checked {
-        Some(checked) if diags.is_empty() => Ok(checked),
+        Some(mut checked) if diags.is_empty() => {
+            let inventory = checked.inventory_mut();
+            inventory.content_hash = content_hash(source, &inventory.files_read);
+            Ok(checked)
+        }
         _ => Err(SceneError::Invalid {
             origin: origin.to_string(),
             diagnostics: diags.into_diagnostics(),

@@ -13,7 +13,9 @@
 use std::collections::HashMap;
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
+
+use sha2::{Digest, Sha256};
 
 use crate::limits;
 use crate::shading::texture::ImageTexture;
@@ -37,10 +39,22 @@ impl Default for LoadOptions {
     }
 }
 
+/// A file a scene read, resolved, and the SHA-256 of its bytes.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FileRead {
+    /// The resolved path.
+    pub path: PathBuf,
+    /// SHA-256 of its contents.
+    pub sha256: [u8; 32],
+}
+
 /// The folders a scene may read.
 #[derive(Clone, Debug)]
 pub struct ReadPolicy {
     roots: Vec<PathBuf>,
+    /// Every file read so far with the SHA-256 of its bytes, in read order:
+    /// what the scene's content hash covers and a preview watches.
+    reads: Arc<Mutex<Vec<FileRead>>>,
 }
 
 impl ReadPolicy {
@@ -50,7 +64,10 @@ impl ReadPolicy {
             .chain(allowed.iter().map(PathBuf::as_path))
             .map(|d| d.canonicalize().unwrap_or_else(|_| d.to_path_buf()))
             .collect();
-        ReadPolicy { roots }
+        ReadPolicy {
+            roots,
+            reads: Arc::default(),
+        }
     }
 
     /// The resolved path of `path` if the scene may read it; the message
@@ -83,7 +100,21 @@ impl ReadPolicy {
         if !meta.is_file() {
             return Err("not a regular file; expected a file to read".into());
         }
-        std::fs::read(&resolved).map_err(cannot)
+        let bytes = std::fs::read(&resolved).map_err(cannot)?;
+        let digest = Sha256::digest(&bytes).into();
+        self.reads
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .push(FileRead {
+                path: resolved,
+                sha256: digest,
+            });
+        Ok(bytes)
+    }
+
+    /// The files read so far and the SHA-256 of each, in read order.
+    pub fn files_read(&self) -> Vec<FileRead> {
+        self.reads.lock().unwrap_or_else(|p| p.into_inner()).clone()
     }
 }
 

@@ -4,6 +4,7 @@ use glam::DVec3;
 
 use super::Texture;
 use super::optics::reflect;
+use crate::math::transcendental;
 
 /// How kr and kt are found at a hit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -96,7 +97,7 @@ impl Material {
                 Highlight::Phong => reflect(-l, n).dot(view),
                 Highlight::Blinn => n.dot((l + view).normalize()),
             };
-            self.ks * highlight.max(0.0).powf(self.shininess)
+            self.ks * transcendental::pow(highlight.max(0.0), self.shininess)
         } else {
             0.0
         };
@@ -105,6 +106,7 @@ impl Material {
 }
 
 #[cfg(test)]
+#[allow(clippy::disallowed_methods)] // hand-worked values use the platform's functions
 mod tests {
     use super::*;
 

@@ -3,6 +3,7 @@
 use std::io::{BufRead, Seek};
 use std::sync::{Arc, LazyLock};
 
+use crate::math::transcendental;
 use glam::{DVec2, DVec3};
 use image::{ColorType, DynamicImage, ImageDecoder};
 
@@ -44,7 +45,7 @@ pub fn srgb_to_linear(c: f64) -> f64 {
     if c <= 0.04045 {
         c / 12.92
     } else {
-        ((c + 0.055) / 1.055).powf(2.4)
+        transcendental::pow((c + 0.055) / 1.055, 2.4)
     }
 }
 

@@ -2,6 +2,14 @@
 //! linear float radiance (unclamped), always through a temporary file that
 //! is renamed into place, so a failed render never leaves a truncated image
 //! and never destroys the previous one.
+//!
+//! Every format starts from the radiance rounded to f32, the precision an
+//! EXR part holds, so an image merged from EXR parts equals, byte for byte,
+//! the one rendered whole, in any format.
+
+pub mod exr;
+
+pub use exr::{Part, Provenance, read_part};
 
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -11,6 +19,7 @@ use image::codecs::pnm::{PnmEncoder, PnmSubtype, SampleEncoding};
 use image::{DynamicImage, ImageFormat, Rgb32FImage, RgbImage};
 use thiserror::Error;
 
+use crate::math::transcendental;
 use crate::render::Film;
 
 /// The image formats Prism writes, chosen by file extension.
@@ -60,12 +69,12 @@ pub enum ImageWriteError {
         path: PathBuf,
     },
     /// The encoder failed.
-    #[error("{path}: {source}")]
+    #[error("{path}: {message}")]
     Encode {
         /// The output path.
         path: PathBuf,
-        /// The cause.
-        source: image::ImageError,
+        /// The encoder's message.
+        message: String,
     },
 }
 
@@ -93,7 +102,7 @@ pub fn linear_to_srgb(v: f64) -> f64 {
     if v <= 0.003_130_8 {
         12.92 * v
     } else {
-        1.055 * v.powf(1.0 / 2.4) - 0.055
+        1.055 * transcendental::pow(v, 1.0 / 2.4) - 0.055
     }
 }
 
@@ -114,14 +123,17 @@ pub fn to_f32(v: f64) -> f32 {
     }
 }
 
+/// The film's region as an 8-bit or float image (not EXR, which
+/// [`exr::write`] writes with its data window).
 fn to_image(film: &Film, format: OutputFormat) -> DynamicImage {
-    let (w, h) = (film.width(), film.height());
+    let (w, h) = (film.region().width(), film.region().height());
+    let srgb8 = |v: f64| to_srgb8(f64::from(to_f32(v)));
     match format {
         OutputFormat::Png | OutputFormat::Ppm => {
             let data = film
                 .pixels()
                 .iter()
-                .flat_map(|p| [to_srgb8(p.x), to_srgb8(p.y), to_srgb8(p.z)])
+                .flat_map(|p| [srgb8(p.x), srgb8(p.y), srgb8(p.z)])
                 .collect();
             DynamicImage::ImageRgb8(
                 RgbImage::from_raw(w, h, data).expect("buffer matches the film size"),
@@ -217,15 +229,18 @@ impl<W: std::io::Seek> std::io::Seek for Stoppable<'_, W> {
 /// the image is written to a temporary file beside `path` and renamed over
 /// it only once complete.
 pub fn write_film(film: &Film, path: &Path) -> Result<(), ImageWriteError> {
-    write_film_unless(film, path, &AtomicBool::new(false))
+    write_film_unless(film, path, None, &AtomicBool::new(false))
 }
 
-/// [`write_film`], abandoned as soon as `stop` is set (by a signal
-/// handler): then the temporary file is removed, any old file at `path` is
-/// untouched, and the result is [`ImageWriteError::Interrupted`].
+/// [`write_film`] with the pixels' provenance (stored in EXR files), and
+/// abandoned as soon as `stop` is set (by a signal handler): then the
+/// temporary file is removed, any old file at `path` is untouched, and the
+/// result is [`ImageWriteError::Interrupted`]. A film over a region is
+/// written as that region (EXR: as its data window in the whole frame).
 pub fn write_film_unless(
     film: &Film,
     path: &Path,
+    provenance: Option<&Provenance>,
     stop: &AtomicBool,
 ) -> Result<(), ImageWriteError> {
     let format = OutputFormat::from_path(path)?;
@@ -249,24 +264,29 @@ pub fn write_film_unless(
             inner: temp.as_file(),
             stop,
         });
-        let image = to_image(film, format);
         let encoded = match format {
             // Binary PPM (P6), which every viewer reads; the image crate's
             // default for .ppm is PAM (P7).
-            OutputFormat::Ppm => image.write_with_encoder(
-                PnmEncoder::new(&mut writer)
-                    .with_subtype(PnmSubtype::Pixmap(SampleEncoding::Binary)),
-            ),
-            OutputFormat::Png => image.write_to(&mut writer, ImageFormat::Png),
-            OutputFormat::Exr => image.write_to(&mut writer, ImageFormat::OpenExr),
-            OutputFormat::Hdr => image.write_to(&mut writer, ImageFormat::Hdr),
+            OutputFormat::Ppm => to_image(film, format)
+                .write_with_encoder(
+                    PnmEncoder::new(&mut writer)
+                        .with_subtype(PnmSubtype::Pixmap(SampleEncoding::Binary)),
+                )
+                .map_err(|e| e.to_string()),
+            OutputFormat::Png => to_image(film, format)
+                .write_to(&mut writer, ImageFormat::Png)
+                .map_err(|e| e.to_string()),
+            OutputFormat::Exr => exr::write(film, provenance, &mut writer),
+            OutputFormat::Hdr => to_image(film, format)
+                .write_to(&mut writer, ImageFormat::Hdr)
+                .map_err(|e| e.to_string()),
         };
         if stop.load(Ordering::SeqCst) {
             return Err(interrupted());
         }
-        encoded.map_err(|source| ImageWriteError::Encode {
+        encoded.map_err(|message| ImageWriteError::Encode {
             path: path.to_path_buf(),
-            source,
+            message,
         })?;
         writer.flush().map_err(io_error)?;
     }
@@ -279,6 +299,7 @@ pub fn write_film_unless(
 }
 
 #[cfg(test)]
+#[allow(clippy::disallowed_methods)] // hand-worked values use the platform's functions
 mod tests {
     use super::*;
     use glam::DVec3;
@@ -352,7 +373,7 @@ mod tests {
         std::fs::write(&path, b"old").unwrap();
         let stop = AtomicBool::new(true);
         assert!(matches!(
-            write_film_unless(&Film::new(64, 64), &path, &stop),
+            write_film_unless(&Film::new(64, 64), &path, None, &stop),
             Err(ImageWriteError::Interrupted { .. })
         ));
         assert_eq!(std::fs::read(&path).unwrap(), b"old");

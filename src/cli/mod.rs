@@ -1,0 +1,166 @@
+//! Command-line interface: argument parsing, progress display, exit codes.
+//! No rendering logic lives here; it calls the `prism` library.
+//!
+//! Exit codes: 0 success, 1 a failure while rendering or writing, 2 bad
+//! input (arguments, scene file, output path), 130 interrupted (SIGINT,
+//! SIGTERM or SIGHUP); on bad input or interruption nothing is written and
+//! no temporary file remains (SIGKILL cannot be caught: its one exception).
+
+mod merge;
+mod render;
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use clap::{Args, Parser, Subcommand};
+use prism::scene::LoadOptions;
+use prism::{Scene, SceneError, limits};
+
+use crate::farm::FarmCommand;
+use merge::MergeArgs;
+use render::RenderArgs;
+pub use render::parse_frames;
+
+/// Prism, an exact Whitted-style ray tracer.
+#[derive(Parser)]
+#[command(name = "prism", version, about, after_help = limits::describe())]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene to an image (.png, .ppm, .exr, .hdr), a region of it
+    /// or a range of frames.
+    Render(RenderArgs),
+    /// Merge EXR parts of one frame (from --crop or --tile) into the whole
+    /// image.
+    Merge(MergeArgs),
+    /// Render on a batch system: write (and submit) the jobs, or report
+    /// what is done.
+    #[command(subcommand)]
+    Farm(FarmCommand),
+    /// Validate a scene file without rendering; reports every problem.
+    #[command(after_help = limits::describe())]
+    Check {
+        /// The scene file (TOML).
+        scene: PathBuf,
+        #[command(flatten)]
+        load: LoadArgs,
+    },
+}
+
+/// What a scene may read and use while loading.
+#[derive(Args)]
+pub struct LoadArgs {
+    /// Let the scene read files below DIR too (repeatable). By default a
+    /// scene reads only below its own folder; PRISM_ALLOW_READ adds folders
+    /// separated by ':'.
+    #[arg(long, value_name = "DIR")]
+    allow_read: Vec<PathBuf>,
+    /// Memory for decoded textures, in MiB.
+    #[arg(long, value_name = "MIB", default_value_t = limits::DEFAULT_TEXTURE_MIB,
+          value_parser = clap::value_parser!(u64).range(1..=1 << 30))]
+    texture_memory: u64,
+}
+
+impl LoadArgs {
+    /// The load options, or a message naming a folder that does not exist.
+    fn options(&self) -> Result<LoadOptions, String> {
+        let from_env = std::env::var_os("PRISM_ALLOW_READ")
+            .map(|v| std::env::split_paths(&v).collect::<Vec<_>>())
+            .unwrap_or_default();
+        let mut allow_read = Vec::new();
+        for dir in self.allow_read.iter().chain(&from_env) {
+            if dir.as_os_str().is_empty() {
+                continue;
+            }
+            if !dir.is_dir() {
+                return Err(format!(
+                    "{}: --allow-read (or PRISM_ALLOW_READ) names no folder",
+                    dir.display()
+                ));
+            }
+            allow_read.push(dir.clone());
+        }
+        Ok(LoadOptions {
+            allow_read,
+            texture_budget: self.texture_memory << 20,
+        })
+    }
+}
+
+pub const BAD_INPUT: u8 = 2;
+/// 128 + SIGINT, what shells report for a program stopped by Ctrl-C.
+pub const INTERRUPTED: u8 = 130;
+
+/// Runs the command line and returns the process exit code.
+pub fn run() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            return ExitCode::from(if e.use_stderr() { BAD_INPUT } else { 0 });
+        }
+    };
+    match cli.command {
+        Command::Check { scene, load } => check(&scene, &load),
+        Command::Render(args) => render::render_command(&args),
+        Command::Merge(args) => merge::merge_command(&args),
+        Command::Farm(command) => crate::farm::run(command),
+    }
+}
+
+fn report_scene_error(e: &SceneError) -> ExitCode {
+    eprintln!("{e}");
+    ExitCode::from(BAD_INPUT)
+}
+
+fn check(path: &Path, load: &LoadArgs) -> ExitCode {
+    let options = match load.options() {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(BAD_INPUT);
+        }
+    };
+    let start = Instant::now();
+    match Scene::load_with(path, &options) {
+        Ok(scene) => {
+            let total = start.elapsed();
+            for w in &scene.warnings {
+                eprintln!("warning: {w}");
+            }
+            let c = scene.census();
+            let inv = &scene.inventory;
+            println!(
+                "{}: ok ({} objects, {} lights, {} materials)\n\
+                 primitives: {} spheres, {} planes, {} polygons, {} mesh instances\n\
+                 meshes: {} stored ({} triangles), {} triangles placed\n\
+                 textures: {} ({:.1} MiB)\n\
+                 estimated memory: {:.1} MiB\n\
+                 load {:.2} s, build {:.2} s",
+                path.display(),
+                scene.aggregate.primitives().len(),
+                scene.lights.len(),
+                scene.materials.len(),
+                c.spheres,
+                c.planes,
+                c.polygons,
+                c.mesh_instances,
+                c.meshes,
+                c.triangles,
+                c.placed_triangles,
+                inv.textures,
+                inv.texture_bytes as f64 / (1 << 20) as f64,
+                c.memory_bytes as f64 / (1 << 20) as f64,
+                total.saturating_sub(inv.build_time).as_secs_f64(),
+                inv.build_time.as_secs_f64(),
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => report_scene_error(&e),
+    }
+}

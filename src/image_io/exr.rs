@@ -1,0 +1,207 @@
+//! OpenEXR through the `exr` crate: linear f32 RGB, the film's region as
+//! the data window inside the whole frame's display window, and one text
+//! attribute, `prism`, saying what the pixels were made from. Parts of a
+//! frame rendered apart are read back, checked against each other and
+//! merged from these files.
+
+use std::io::{Seek, Write};
+use std::path::Path;
+
+use exr::prelude::{
+    AttributeValue, Encoding, Image, IntegerBounds, Layer, LayerAttributes, SpecificChannels, Text,
+    Vec2, WritableImage, read_first_rgba_layer_from_file,
+};
+use glam::DVec3;
+
+use super::to_f32;
+use crate::limits;
+use crate::render::{Film, Region};
+
+/// Name of the EXR attribute holding a [`Provenance`].
+const ATTRIBUTE: &str = "prism";
+
+/// What a render's pixels were made from: two parts whose provenance is
+/// equal belong to the same image.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Provenance {
+    /// SHA-256 over the scene text and every file it read
+    /// (`Inventory::content_hash`).
+    pub scene_hash: String,
+    /// The settings that change pixels, in canonical form
+    /// (`RenderSettings::pixel_key`).
+    pub settings: String,
+    /// Seed of the random streams.
+    pub seed: u64,
+    /// Animation frame.
+    pub frame: u32,
+}
+
+impl Provenance {
+    /// The fields as (name, value), in the order they are stored and
+    /// compared.
+    pub fn fields(&self) -> [(&'static str, String); 4] {
+        [
+            ("scene_sha256", self.scene_hash.clone()),
+            ("settings", self.settings.clone()),
+            ("seed", self.seed.to_string()),
+            ("frame", self.frame.to_string()),
+        ]
+    }
+
+    /// The first field in which `other` differs, as (name, ours, theirs).
+    pub fn difference(&self, other: &Provenance) -> Option<(&'static str, String, String)> {
+        self.fields()
+            .into_iter()
+            .zip(other.fields())
+            .find(|(a, b)| a.1 != b.1)
+            .map(|(a, b)| (a.0, a.1, b.1))
+    }
+
+    fn to_text(&self, region: Region) -> String {
+        let mut text: String = self
+            .fields()
+            .iter()
+            .map(|(k, v)| format!("{k}={v}\n"))
+            .collect();
+        text.push_str(&format!("region={region}\n"));
+        text
+    }
+
+    fn from_text(text: &str) -> Result<(Provenance, Region), String> {
+        let get = |key: &str| {
+            text.lines()
+                .find_map(|l| l.strip_prefix(key).and_then(|r| r.strip_prefix('=')))
+                .ok_or_else(|| format!("its `prism` attribute has no `{key}`"))
+        };
+        let number = |key: &str| -> Result<u64, String> {
+            get(key)?
+                .parse()
+                .map_err(|_| format!("its `prism` attribute's `{key}` is not a number"))
+        };
+        let region: Vec<u32> = get("region")?
+            .split(',')
+            .map(str::parse)
+            .collect::<Result<_, _>>()
+            .map_err(|_| "its `prism` attribute's `region` is not X0,X1,Y0,Y1".to_string())?;
+        let [x0, x1, y0, y1] = region[..] else {
+            return Err("its `prism` attribute's `region` is not X0,X1,Y0,Y1".into());
+        };
+        Ok((
+            Provenance {
+                scene_hash: get("scene_sha256")?.to_string(),
+                settings: get("settings")?.to_string(),
+                seed: number("seed")?,
+                frame: u32::try_from(number("frame")?)
+                    .map_err(|_| "its frame number is too large".to_string())?,
+            },
+            Region { x0, x1, y0, y1 },
+        ))
+    }
+}
+
+/// Writes `film` as EXR to `out`: the data window is the film's region,
+/// the display window the whole frame. The bytes depend only on the pixels
+/// and the provenance (no time stamps, attributes in a fixed order), so two
+/// renders of the same image give the same file.
+pub fn write(
+    film: &Film,
+    provenance: Option<&Provenance>,
+    out: impl Write + Seek,
+) -> Result<(), String> {
+    let region = film.region();
+    let width = region.width() as usize;
+    let pixels = film.pixels();
+    let mut attributes = LayerAttributes {
+        layer_position: Vec2(region.x0 as i32, region.y0 as i32),
+        ..LayerAttributes::default()
+    };
+    if let Some(p) = provenance {
+        // One attribute: the crate keeps custom attributes in a hash map,
+        // whose order would change from run to run.
+        attributes.other.insert(
+            Text::from(ATTRIBUTE),
+            AttributeValue::Text(Text::from(p.to_text(region).as_str())),
+        );
+    }
+    let layer = Layer::new(
+        (width, region.height() as usize),
+        attributes,
+        Encoding::SMALL_LOSSLESS,
+        SpecificChannels::rgb(|at: Vec2<usize>| {
+            let p = pixels[at.y() * width + at.x()];
+            (to_f32(p.x), to_f32(p.y), to_f32(p.z))
+        }),
+    );
+    let mut image = Image::from_layer(layer);
+    image.attributes.display_window =
+        IntegerBounds::new((0, 0), (film.width() as usize, film.height() as usize));
+    image
+        .write()
+        .non_parallel()
+        .to_buffered(out)
+        .map_err(|e| e.to_string())
+}
+
+/// A part read back: its pixels (over its region of the frame) and what
+/// they were made from.
+pub struct Part {
+    /// The pixels, as a film over the part's region.
+    pub film: Film,
+    /// What they were made from.
+    pub provenance: Provenance,
+}
+
+/// Reads an EXR written by [`write`] with a provenance. Messages say what
+/// is wrong without the path (the caller names the file).
+pub fn read_part(path: &Path) -> Result<Part, String> {
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| e.to_string())?;
+    let [header] = &meta.headers[..] else {
+        return Err("not a single-part OpenEXR image written by prism".into());
+    };
+    let text = match header.own_attributes.other.get(&Text::from(ATTRIBUTE)) {
+        Some(AttributeValue::Text(t)) => t.to_string(),
+        _ => {
+            return Err(
+                "it has no `prism` attribute: not a region written by `prism render`".into(),
+            );
+        }
+    };
+    let (provenance, region) = Provenance::from_text(&text)?;
+    let display = header.shared_attributes.display_window;
+    let data = header.data_window();
+    let (width, height) = (display.size.width(), display.size.height());
+    let sane = display.position == Vec2(0, 0)
+        && width as u64 <= u64::from(limits::MAX_IMAGE_SIDE)
+        && height as u64 <= u64::from(limits::MAX_IMAGE_SIDE)
+        && data.position == Vec2(region.x0 as i32, region.y0 as i32)
+        && data.size == Vec2(region.width() as usize, region.height() as usize)
+        && region.area() > 0
+        && Region::full(width as u32, height as u32).contains(&region);
+    if !sane {
+        return Err(format!(
+            "its data window ({:?} + {:?}) and display window disagree with its region {region}",
+            data.position, data.size
+        ));
+    }
+    let (width, height) = (width as u32, height as u32);
+    // The decoder is not ours: a file it cannot handle must be an error,
+    // not a crash of the merge.
+    let row = region.width() as usize;
+    let pixels = std::panic::catch_unwind(move || {
+        read_first_rgba_layer_from_file(
+            path,
+            |size, _| vec![DVec3::ZERO; size.area()],
+            move |pixels: &mut Vec<DVec3>, at, (r, g, b, _a): (f32, f32, f32, f32)| {
+                pixels[at.y() * row + at.x()] = DVec3::new(r.into(), g.into(), b.into());
+            },
+        )
+    })
+    .map_err(|_| "the OpenEXR decoder failed on it".to_string())?
+    .map_err(|e| e.to_string())?
+    .layer_data
+    .channel_data
+    .pixels;
+    let mut film = Film::window(width, height, region);
+    film.paste(region, &pixels);
+    Ok(Part { film, provenance })
+}

@@ -1,0 +1,235 @@
+//! Resumable renders: each finished tile is saved to a folder as it
+//! finishes (a temporary file renamed into place, so a tile file is whole
+//! or absent whatever kills the process), and a later run of the same
+//! render takes the saved tiles instead of tracing them again. The folder
+//! is tied to one render by a manifest: another scene, other settings or
+//! another region are refused rather than mixed in.
+
+use std::collections::HashMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use glam::DVec3;
+use sha2::{Digest, Sha256};
+
+use super::Region;
+
+/// First bytes of a tile file.
+const MAGIC: &[u8; 8] = b"PRISMTL1";
+/// The manifest's file name.
+const MANIFEST: &str = "checkpoint.txt";
+
+/// A checkpoint folder opened for one render.
+pub struct Checkpoint {
+    dir: PathBuf,
+    saved: Mutex<HashMap<Region, Vec<DVec3>>>,
+    resumed: usize,
+}
+
+impl Checkpoint {
+    /// Opens (creating if needed) the checkpoint in `dir` for the render
+    /// identified by `key` (what the pixels depend on, and the region),
+    /// loading the tiles an earlier run saved. Refuses a folder that holds
+    /// another render's checkpoint, naming the line that differs.
+    pub fn open(dir: &Path, key: &str) -> Result<Checkpoint, String> {
+        std::fs::create_dir_all(dir).map_err(|e| {
+            format!(
+                "{}: cannot create the checkpoint folder: {e}",
+                dir.display()
+            )
+        })?;
+        let manifest = dir.join(MANIFEST);
+        match std::fs::read_to_string(&manifest) {
+            Ok(old) if old == key => {}
+            Ok(old) => {
+                let differs = key
+                    .lines()
+                    .zip(old.lines().chain(std::iter::repeat("")))
+                    .find(|(a, b)| a != b)
+                    .map_or(String::new(), |(a, b)| {
+                        format!(" (it has `{b}`, this render `{a}`)")
+                    });
+                return Err(format!(
+                    "{}: holds the checkpoint of another render{differs}; \
+                     use another folder or delete this one",
+                    dir.display()
+                ));
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                if std::fs::read_dir(dir).map_or(true, |mut d| d.next().is_some()) {
+                    return Err(format!(
+                        "{}: is not empty and holds no checkpoint; give an empty or new folder",
+                        dir.display()
+                    ));
+                }
+                write_atomically(&manifest, key.as_bytes())
+                    .map_err(|e| format!("{}: {e}", manifest.display()))?;
+            }
+            Err(e) => return Err(format!("{}: {e}", manifest.display())),
+        }
+        let mut saved = HashMap::new();
+        let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        for entry in entries.flatten() {
+            let path = entry.path();
+            if path.extension().is_some_and(|e| e == "tile") {
+                // A damaged tile is traced again, not trusted.
+                if let Some((region, pixels)) = std::fs::read(&path).ok().and_then(|b| decode(&b)) {
+                    saved.insert(region, pixels);
+                }
+            }
+        }
+        Ok(Checkpoint {
+            dir: dir.to_path_buf(),
+            resumed: saved.len(),
+            saved: Mutex::new(saved),
+        })
+    }
+
+    /// How many tiles an earlier run left.
+    pub fn resumed(&self) -> usize {
+        self.resumed
+    }
+
+    /// The saved pixels of `tile`, if an earlier run finished it.
+    pub fn take(&self, tile: Region) -> Option<Vec<DVec3>> {
+        self.saved
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .remove(&tile)
+            .filter(|p| p.len() as u64 == tile.area())
+    }
+
+    /// Saves a finished tile.
+    pub fn save(&self, tile: Region, pixels: &[DVec3]) -> Result<(), String> {
+        let path = self.dir.join(format!("{}-{}.tile", tile.x0, tile.y0));
+        write_atomically(&path, &encode(tile, pixels))
+            .map_err(|e| format!("{}: {e}", path.display()))
+    }
+
+    /// Removes the checkpoint once the image is written.
+    pub fn remove(self) -> std::io::Result<()> {
+        for entry in std::fs::read_dir(&self.dir)?.flatten() {
+            let path = entry.path();
+            if path.extension().is_some_and(|e| e == "tile" || e == "part")
+                || path.file_name().is_some_and(|n| n == MANIFEST)
+            {
+                std::fs::remove_file(path)?;
+            }
+        }
+        std::fs::remove_dir(&self.dir)
+    }
+}
+
+/// Writes `bytes` to a temporary file beside `path` and renames it there.
+fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let mut temp = tempfile::Builder::new()
+        .prefix(".tile-")
+        .suffix(".part")
+        .tempfile_in(dir)?;
+    temp.write_all(bytes)?;
+    temp.persist(path).map_err(|e| e.error)?;
+    Ok(())
+}
+
+/// Magic, the region (4 × u32), the pixels (f64 RGB), all little-endian,
+/// then the SHA-256 of everything before it.
+fn encode(tile: Region, pixels: &[DVec3]) -> Vec<u8> {
+    let mut bytes = Vec::with_capacity(8 + 16 + pixels.len() * 24 + 32);
+    bytes.extend_from_slice(MAGIC);
+    for v in [tile.x0, tile.x1, tile.y0, tile.y1] {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    for p in pixels {
+        for c in p.to_array() {
+            bytes.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    let digest = Sha256::digest(&bytes);
+    bytes.extend_from_slice(&digest);
+    bytes
+}
+
+fn decode(bytes: &[u8]) -> Option<(Region, Vec<DVec3>)> {
+    let (body, digest) = bytes.split_at_checked(bytes.len().checked_sub(32)?)?;
+    if Sha256::digest(body).as_slice() != digest || !body.starts_with(MAGIC) {
+        return None;
+    }
+    let word =
+        |i: usize| u32::from_le_bytes(body[8 + 4 * i..12 + 4 * i].try_into().unwrap_or_default());
+    if body.len() < 24 {
+        return None;
+    }
+    let (x0, x1, y0, y1) = (word(0), word(1), word(2), word(3));
+    if x0 >= x1 || y0 >= y1 {
+        return None;
+    }
+    let region = Region { x0, x1, y0, y1 };
+    let data = &body[24..];
+    if data.len() as u64 != region.area() * 24 {
+        return None;
+    }
+    let pixels = data
+        .chunks_exact(24)
+        .map(|c| {
+            let f =
+                |i: usize| f64::from_le_bytes(c[8 * i..8 * i + 8].try_into().unwrap_or_default());
+            DVec3::new(f(0), f(1), f(2))
+        })
+        .collect();
+    Some((region, pixels))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tiles_round_trip_and_damage_is_detected() {
+        let tile = Region {
+            x0: 16,
+            x1: 20,
+            y0: 0,
+            y1: 2,
+        };
+        let pixels: Vec<DVec3> = (0..8)
+            .map(|i| DVec3::new(i as f64, 0.1, -3.5e300))
+            .collect();
+        let bytes = encode(tile, &pixels);
+        assert_eq!(decode(&bytes), Some((tile, pixels)));
+        for cut in [0, 10, bytes.len() - 1] {
+            assert_eq!(decode(&bytes[..cut]), None);
+        }
+        let mut flipped = bytes.clone();
+        flipped[40] ^= 1;
+        assert_eq!(decode(&flipped), None);
+    }
+
+    #[test]
+    fn a_checkpoint_resumes_and_refuses_another_render() {
+        let dir = tempfile::tempdir().unwrap();
+        let at = dir.path().join("cp");
+        let tile = Region {
+            x0: 0,
+            x1: 2,
+            y0: 0,
+            y1: 1,
+        };
+        let c = Checkpoint::open(&at, "scene=a\nregion=0,2,0,1\n").unwrap();
+        assert_eq!(c.resumed(), 0);
+        c.save(tile, &[DVec3::ONE, DVec3::X]).unwrap();
+        let c = Checkpoint::open(&at, "scene=a\nregion=0,2,0,1\n").unwrap();
+        assert_eq!(c.resumed(), 1);
+        assert_eq!(c.take(tile), Some(vec![DVec3::ONE, DVec3::X]));
+        let e = Checkpoint::open(&at, "scene=b\nregion=0,2,0,1\n")
+            .err()
+            .unwrap();
+        assert!(e.contains("another render") && e.contains("scene=b"), "{e}");
+        c.remove().unwrap();
+        assert!(!at.exists());
+        // A folder with other files in it is not taken over.
+        std::fs::write(dir.path().join("x"), "x").unwrap();
+        assert!(Checkpoint::open(dir.path(), "k").is_err());
+    }
+}
