@@ -22,7 +22,7 @@ os.makedirs(os.path.join(HERE, "out"), exist_ok=True)
 subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
 out = os.path.join(HERE, "out", "big.png")
 child = subprocess.Popen([os.path.join(ROOT, "target", "release", "prism"), "render", os.path.join(HERE, "big.toml"),
-                          "-o", out])
+                          "--allow-read", os.path.join(ROOT, "scenes"), "-o", out])
 _, status, usage = os.wait4(child.pid, 0)
 if status != 0:
     sys.exit("the render failed")

@@ -9,6 +9,7 @@
 mod merge;
 mod render;
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -135,7 +136,9 @@ fn check(path: &Path, load: &LoadArgs) -> ExitCode {
             }
             let c = scene.census();
             let inv = &scene.inventory;
-            println!(
+            // A reader that stops early (`| head`) is not an error.
+            let _ = writeln!(
+                std::io::stdout().lock(),
                 "{}: ok ({} objects, {} lights, {} materials)\n\
                  primitives: {} spheres, {} planes, {} polygons, {} mesh instances\n\
                  meshes: {} stored ({} triangles), {} triangles placed\n\

@@ -10,6 +10,7 @@
 
 mod slurm;
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -225,8 +226,11 @@ fn status(outdir: &Path) -> Result<(), Failure> {
     let plan: Plan = toml::from_str(&text)
         .map_err(|e| Failure::BadInput(format!("{}: not a farm plan: {e}", path.display())))?;
     let progress = Progress::of(&plan, outdir);
+    // A reader that stops early (`| head`) is not an error.
+    let mut out = std::io::stdout().lock();
     let frames = plan.last_frame - plan.first_frame + 1;
-    println!(
+    let _ = writeln!(
+        out,
         "{}: frames {}-{}, {} tiles each ({} tasks); scene {}",
         outdir.display(),
         plan.first_frame,
@@ -235,7 +239,8 @@ fn status(outdir: &Path) -> Result<(), Failure> {
         plan.task_count(),
         plan.scene.display()
     );
-    println!(
+    let _ = writeln!(
+        out,
         "merged: {} of {frames} frames; parts missing: {}",
         progress.merged.len(),
         progress.missing_tasks.len()
@@ -255,7 +260,7 @@ fn status(outdir: &Path) -> Result<(), Failure> {
                 .collect();
             format!("missing tiles {}", missing.join(","))
         };
-        println!("frame {f}: {done}/{} parts; {state}", plan.tiles);
+        let _ = writeln!(out, "frame {f}: {done}/{} parts; {state}", plan.tiles);
     }
     Ok(())
 }
