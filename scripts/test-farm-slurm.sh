@@ -17,8 +17,8 @@ trap 'scripts/slurm-cluster.sh down; rm -rf "$WORK"' EXIT
 
 fail() { echo "FAIL: $*" >&2; exit 1; }
 
-# A small copy of Whitted's scene (its models and textures are not needed).
-sed -e 's/^width = .*/width = 200/' -e 's/^height = .*/height = 150/' scenes/whitted.toml > "$WORK/scene.toml"
+# A small copy of the example animation (the glass ball rolls: frames differ).
+sed -e 's/^width = .*/width = 200/' -e 's/^height = .*/height = 150/' scenes/rolling.toml > "$WORK/scene.toml"
 
 # Waits until none of the jobs recorded in $1/jobs.txt (of kind $2, or all)
 # is queued or running.

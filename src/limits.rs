@@ -11,6 +11,8 @@ pub const MAX_PIXELS: u64 = 1 << 28;
 pub const MAX_SPP: u32 = 65_536;
 /// Deepest ray path (each level is a stack frame).
 pub const MAX_DEPTH: u32 = 256;
+/// Most frames of an animation (ten hours at 24 fps).
+pub const MAX_FRAMES: u32 = 1_000_000;
 /// Most shadow feelers per sphere light and shading point.
 pub const MAX_LIGHT_SAMPLES: u32 = 65_536;
 
@@ -39,7 +41,7 @@ pub const MAX_TABLE_TEXT: usize = 16 << 20;
 pub fn describe() -> String {
     format!(
         "Limits: image sides 1..={MAX_IMAGE_SIDE} and at most {MAX_PIXELS} pixels; spp 1..={MAX_SPP}; \
-         max_depth 1..={MAX_DEPTH}; sphere-light samples 1..={MAX_LIGHT_SAMPLES}; coordinates within \
+         max_depth 1..={MAX_DEPTH}; animation frames 1..={MAX_FRAMES}; sphere-light samples 1..={MAX_LIGHT_SAMPLES}; coordinates within \
          ±{MAX_COORDINATE:e} and lengths, radii and scale factors in [{MIN_LENGTH:e}, {MAX_COORDINATE:e}] \
          (after transforms); colours, intensities and coefficients at most {MAX_VALUE:e}; \
          {MAX_MODEL_PLACEMENTS} placements per model file; {} MiB of scene text per [[objects]] \

@@ -299,3 +299,61 @@ fn a_killed_checkpointed_render_resumes_to_the_same_bytes() {
         "the checkpoint is removed after the write"
     );
 }
+
+/// The example animation: the keyed translation puts the glass ball at
+/// the keys' values on the key frames and (smoothstep) half-way at the
+/// middle frame; frames past the end are refused with the scene's line.
+#[test]
+fn keyed_values_move_the_glass_ball() {
+    use prism::accel::Shape;
+    use prism::scene::LoadOptions;
+    let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/rolling.toml"));
+    let centre = |frame: u32| {
+        let options = LoadOptions {
+            frame,
+            ..LoadOptions::default()
+        };
+        let scene = prism::Scene::load_with(path, &options).unwrap();
+        assert!(scene.animated);
+        assert_eq!(scene.animation.map(|a| a.frames), Some(48));
+        scene
+            .aggregate
+            .primitives()
+            .iter()
+            .find_map(|p| match &p.shape {
+                Shape::Sphere(s) if (s.radius - 0.8).abs() < 1e-9 => Some(s.center),
+                _ => None,
+            })
+            .unwrap()
+    };
+    let close = |a: glam::DVec3, b: [f64; 3]| (a - glam::DVec3::from_array(b)).length() < 1e-12;
+    assert!(close(centre(0), [-3.0, 0.8, 0.8]), "{}", centre(0));
+    assert!(close(centre(47), [3.0, 0.8, 0.8]), "{}", centre(47));
+    // s = 23.5/47 = 0.5 exactly between frames 23 and 24: check monotone
+    // motion and the smoothstep's symmetry about the middle instead.
+    let xs: Vec<f64> = (0..48).map(|f| centre(f).x).collect();
+    assert!(xs.windows(2).all(|w| w[1] > w[0]), "{xs:?}");
+    for f in 0..48 {
+        assert!((xs[f] + xs[47 - f]).abs() < 1e-12, "frame {f}");
+    }
+    // Slow near the keys (eased), fast in the middle.
+    assert!(xs[1] - xs[0] < xs[24] - xs[23]);
+    let dir = tempfile::tempdir().unwrap();
+    let o = prism(
+        dir.path(),
+        &[
+            "render",
+            path.to_str().unwrap(),
+            "--frame",
+            "48",
+            "-o",
+            "out.png",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("rolling.toml:") && err.contains("past the animation's last frame 47"),
+        "{err}"
+    );
+}

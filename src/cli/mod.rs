@@ -89,6 +89,7 @@ impl LoadArgs {
         Ok(LoadOptions {
             allow_read,
             texture_budget: self.texture_memory << 20,
+            frame: 0,
         })
     }
 }

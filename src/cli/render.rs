@@ -203,19 +203,33 @@ pub fn render_command(args: &RenderArgs) -> ExitCode {
             return bad(e.to_string());
         }
     }
-    let options = match args.load.options() {
+    let mut options = match args.load.options() {
         Ok(o) => o,
         Err(e) => return bad(e),
     };
-    let load_start = Instant::now();
-    let scene = match &args.scene {
-        Some(path) => match Scene::load_with(path, &options) {
-            Ok(s) => s,
-            Err(e) => return report_scene_error(&e),
-        },
-        None => Scene::demo(),
+    options.frame = frames.0;
+    let load = |options: &prism::scene::LoadOptions| {
+        let start = Instant::now();
+        let scene = match &args.scene {
+            Some(path) => Scene::load_with(path, options),
+            None => Ok(Scene::demo()),
+        };
+        scene.map(|s| (s, start.elapsed()))
     };
-    let load_time = load_start.elapsed();
+    let (mut scene, mut load_time) = match load(&options) {
+        Ok(s) => s,
+        Err(e) => return report_scene_error(&e),
+    };
+    if let Some(animation) = scene.animation
+        && frames.1 >= animation.frames
+    {
+        return bad(format!(
+            "frame {} is past the animation's last frame {} ([animation] frames = {})",
+            frames.1,
+            animation.frames - 1,
+            animation.frames
+        ));
+    }
     if !args.quiet {
         for w in &scene.warnings {
             eprintln!("warning: {w}");
@@ -261,6 +275,14 @@ pub fn render_command(args: &RenderArgs) -> ExitCode {
         }
     });
     for (frame, output) in outputs {
+        // Keyed values: each frame is built anew.
+        if scene.animated && frame != options.frame {
+            options.frame = frame;
+            (scene, load_time) = match load(&options) {
+                Ok(s) => s,
+                Err(e) => return report_scene_error(&e),
+            };
+        }
         let job = Job {
             args,
             scene: &scene,

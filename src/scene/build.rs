@@ -10,6 +10,7 @@ use glam::{DAffine3, DMat3, DMat4, DQuat, DVec3, DVec4};
 use toml::Spanned;
 
 use super::Scene;
+use super::animation::{Animated, Animation, AnimationDesc, Interpolation, Lerp};
 use super::error::Diagnostics;
 use super::format::*;
 use super::models::{ModelCamera, load_model};
@@ -63,7 +64,16 @@ pub fn check(
         default_material: None,
         model_failed: false,
         warnings: Vec::new(),
+        frame: f64::from(options.frame),
+        interpolation: Interpolation::Linear,
+        keyed: false,
     };
+    let animation = file.animation.as_ref().and_then(|a| c.animation(a));
+    if let Some(desc) = &file.animation
+        && let Some(i) = &desc.get_ref().interpolation
+    {
+        c.interpolation = *i.get_ref();
+    }
     let settings = c.settings(&file.render);
     let background = file
         .render
@@ -142,6 +152,8 @@ pub fn check(
             ambient,
             transparent_shadows: file.render.transparent_shadows.unwrap_or(false),
             settings,
+            animation,
+            animated: c.keyed,
         },
     })
 }
@@ -188,6 +200,11 @@ struct Check<'d, 's> {
     /// A model file could not be loaded (already reported).
     model_failed: bool,
     warnings: Vec<String>,
+    /// The frame keyed values are taken at.
+    frame: f64,
+    interpolation: Interpolation,
+    /// Whether any value is keyed.
+    keyed: bool,
 }
 
 impl Check<'_, '_> {
@@ -326,6 +343,57 @@ impl Check<'_, '_> {
         }
     }
 
+    /// `value` at the frame being built.
+    fn value_at_frame<T: Lerp>(&mut self, value: &Animated<T>) -> T {
+        self.keyed |= value.is_keyed();
+        value.at(self.frame, self.interpolation)
+    }
+
+    /// A keyed value at the frame being built, with its span.
+    fn at<T: Lerp>(&mut self, value: &Spanned<Animated<T>>) -> Spanned<T> {
+        Spanned::new(value.span(), self.value_at_frame(value.get_ref()))
+    }
+
+    /// [`at`](Self::at) of an optional value.
+    fn at_frame<T: Lerp>(&mut self, value: &Option<Spanned<Animated<T>>>) -> Option<Spanned<T>> {
+        value.as_ref().map(|v| self.at(v))
+    }
+
+    fn animation(&mut self, desc: &Spanned<AnimationDesc>) -> Option<Animation> {
+        let d = desc.get_ref();
+        let frames = *d.frames.get_ref();
+        if frames == 0 || frames > limits::MAX_FRAMES {
+            self.error(
+                d.frames.span(),
+                format!(
+                    "`frames` must be between 1 and {}, got {frames}",
+                    limits::MAX_FRAMES
+                ),
+            );
+            return None;
+        }
+        if self.frame >= f64::from(frames) {
+            self.error(
+                d.frames.span(),
+                format!(
+                    "frame {} is past the animation's last frame {} (frames = {frames})",
+                    self.frame,
+                    frames - 1
+                ),
+            );
+        }
+        let fps = self.number(
+            &d.fps,
+            24.0,
+            "fps",
+            (
+                |x| x > 0.0 && x <= 1000.0,
+                "between 0 and 1000 (exclusive of 0)",
+            ),
+        );
+        Some(Animation { frames, fps })
+    }
+
     fn settings(&mut self, r: &RenderDesc) -> RenderSettings {
         let defaults = RenderSettings::default();
         RenderSettings {
@@ -352,9 +420,12 @@ impl Check<'_, '_> {
 
     fn camera(&mut self, desc: &Spanned<CameraDesc>) -> Option<Camera> {
         let d = desc.get_ref();
-        let position = self.point(&d.position, "position");
-        let look_at = self.point(&d.look_at, "look_at");
-        let up = d.up.as_ref().map_or(DVec3::Y, |u| self.direction(u, "up"));
+        let (position, look_at) = (self.at(&d.position), self.at(&d.look_at));
+        let position = self.point(&position, "position");
+        let look_at = self.point(&look_at, "look_at");
+        let up = self.at_frame(&d.up);
+        let up = up.as_ref().map_or(DVec3::Y, |u| self.direction(u, "up"));
+        let fov = self.at_frame(&d.fov);
         let projection = match d.kind {
             CameraKind::Perspective => {
                 if let Some(v) = &d.view_height {
@@ -364,7 +435,7 @@ impl Check<'_, '_> {
                     );
                 }
                 let fov = self.number(
-                    &d.fov,
+                    &fov,
                     45.0,
                     "fov",
                     (|x| x > 0.0 && x < 180.0, "between 0 and 180 degrees"),
@@ -490,14 +561,15 @@ impl Check<'_, '_> {
     fn light(&mut self, name: &str, desc: &Spanned<LightDesc>) -> Option<Light> {
         let d = desc.get_ref();
         let kind = *d.kind.get_ref();
-        let radiance = d
-            .color
+        let color = self.at_frame(&d.color);
+        let intensity = self.at_frame(&d.intensity);
+        let radiance = color
             .as_ref()
             .map_or(DVec3::ONE, |c| self.color(c, "color"))
-            * self.number(&d.intensity, 1.0, "intensity", VALUE);
+            * self.number(&intensity, 1.0, "intensity", VALUE);
         let label = format!("light `{name}`");
-        let needs = |this: &mut Self, field: &Option<Triple>, key: &str| {
-            if field.is_none() {
+        let needs = |this: &mut Self, present: bool, key: &str| {
+            if !present {
                 this.error(
                     desc.span(),
                     format!("{label}: a {} light needs `{key}`", kind.name()),
@@ -514,9 +586,10 @@ impl Check<'_, '_> {
         };
         let shape = match kind {
             LightKind::Point | LightKind::Sphere => {
-                needs(self, &d.position, "position");
+                needs(self, d.position.is_some(), "position");
                 reject(self, d.direction.as_ref().map(Spanned::span), "direction");
-                let position = d.position.as_ref().map(|p| self.point(p, "position"))?;
+                let position = self.at_frame(&d.position);
+                let position = position.as_ref().map(|p| self.point(p, "position"))?;
                 if kind == LightKind::Point {
                     reject(self, d.radius.as_ref().map(Spanned::span), "radius");
                     reject(self, d.samples.as_ref().map(Spanned::span), "samples");
@@ -536,7 +609,7 @@ impl Check<'_, '_> {
                 }
             }
             LightKind::Directional => {
-                needs(self, &d.direction, "direction");
+                needs(self, d.direction.is_some(), "direction");
                 for (span, key) in [
                     (d.position.as_ref().map(Spanned::span), "position"),
                     (d.radius.as_ref().map(Spanned::span), "radius"),
@@ -951,13 +1024,18 @@ impl Check<'_, '_> {
         let mut ok = true;
         for op in ops {
             let step = match op.get_ref() {
-                TransformOp::Translate(t) => {
-                    Some(DAffine3::from_translation(DVec3::from_array(*t)))
+                TransformOp::Translate(t) => Some(DAffine3::from_translation(DVec3::from_array(
+                    self.value_at_frame(t),
+                ))),
+                TransformOp::Rotate { axis, degrees } => {
+                    let degrees = self.value_at_frame(degrees);
+                    DVec3::from_array(*axis)
+                        .try_normalize()
+                        .map(|a| DAffine3::from_axis_angle(a, degrees.to_radians()))
                 }
-                TransformOp::Rotate { axis, degrees } => DVec3::from_array(*axis)
-                    .try_normalize()
-                    .map(|a| DAffine3::from_axis_angle(a, degrees.to_radians())),
-                TransformOp::Scale(s) => Some(DAffine3::from_scale(DVec3::from_array(s.0))),
+                TransformOp::Scale(s) => Some(DAffine3::from_scale(DVec3::from_array(
+                    self.value_at_frame(s).0,
+                ))),
                 TransformOp::Matrix(rows) => {
                     let m4 = DMat4::from_cols_array_2d(rows).transpose();
                     (m4.row(3) == DVec4::W).then(|| DAffine3 {

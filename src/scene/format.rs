@@ -8,16 +8,24 @@ use std::ops::Range;
 use serde::Deserialize;
 use toml::Spanned;
 
+use super::animation::{Animated, AnimationDesc};
+
 /// Three numbers: a point, a vector or an RGB colour.
 pub type Triple = Spanned<[f64; 3]>;
 /// A number with its span.
 pub type Number = Spanned<f64>;
+/// A point, direction or colour that may be keyed per frame.
+pub type AnimatedTriple = Spanned<Animated<[f64; 3]>>;
+/// A number that may be keyed per frame.
+pub type AnimatedNumber = Spanned<Animated<f64>>;
 
 /// The whole file, section by section.
 #[derive(Debug, Default)]
 pub struct SceneFile {
     /// `[render]`.
     pub render: RenderDesc,
+    /// `[animation]`.
+    pub animation: Option<Spanned<AnimationDesc>>,
     /// `[camera]`.
     pub camera: Option<Spanned<CameraDesc>>,
     /// `[materials.NAME]`.
@@ -89,13 +97,13 @@ pub struct CameraDesc {
     #[serde(rename = "type", default)]
     pub kind: CameraKind,
     /// Eye position.
-    pub position: Triple,
+    pub position: AnimatedTriple,
     /// Point looked at.
-    pub look_at: Triple,
+    pub look_at: AnimatedTriple,
     /// Up direction.
-    pub up: Option<Triple>,
+    pub up: Option<AnimatedTriple>,
     /// Field of view in degrees (perspective).
-    pub fov: Option<Number>,
+    pub fov: Option<AnimatedNumber>,
     /// Axis of `fov`.
     pub fov_axis: Option<Spanned<FovAxisDesc>>,
     /// Height of the view in world units (orthographic).
@@ -220,7 +228,7 @@ pub struct LightDesc {
     #[serde(rename = "type")]
     pub kind: Spanned<LightKind>,
     /// Position (point) or centre (sphere).
-    pub position: Option<Triple>,
+    pub position: Option<AnimatedTriple>,
     /// Direction the light travels (directional).
     pub direction: Option<Triple>,
     /// Radius (sphere).
@@ -228,9 +236,9 @@ pub struct LightDesc {
     /// Shadow feelers per shading point (sphere).
     pub samples: Option<Spanned<u32>>,
     /// Colour.
-    pub color: Option<Triple>,
+    pub color: Option<AnimatedTriple>,
     /// Multiplier of the colour.
-    pub intensity: Option<Number>,
+    pub intensity: Option<AnimatedNumber>,
     /// Distance falloff.
     pub falloff: Option<FalloffDesc>,
 }
@@ -295,16 +303,16 @@ pub struct ObjectDesc {
 #[serde(rename_all = "lowercase", deny_unknown_fields)]
 pub enum TransformOp {
     /// `{ translate = [x, y, z] }`.
-    Translate([f64; 3]),
+    Translate(Animated<[f64; 3]>),
     /// `{ rotate = { axis = [x, y, z], degrees = a } }`.
     Rotate {
         /// Rotation axis.
         axis: [f64; 3],
         /// Angle, counter-clockwise looking down the axis.
-        degrees: f64,
+        degrees: Animated<f64>,
     },
     /// `{ scale = s }` or `{ scale = [x, y, z] }`.
-    Scale(OneOrThree),
+    Scale(Animated<OneOrThree>),
     /// `{ matrix = [[...], [...], [...], [...]] }`: row-major 4×4 acting on
     /// column vectors; the last row must be [0, 0, 0, 1].
     Matrix([[f64; 4]; 4]),

@@ -12,7 +12,7 @@ use super::format::{ObjectDesc, SceneFile};
 use super::tables::Tables;
 use crate::limits::MAX_TABLE_TEXT;
 
-const SECTIONS: &str = "`render`, `camera`, `materials`, `lights` or `objects`";
+const SECTIONS: &str = "`render`, `animation`, `camera`, `materials`, `lights` or `objects`";
 
 /// Parses `source` into sections, recording every problem found in `diags`;
 /// the `[[objects]]` tables are only located (see [`object`]). Returns
@@ -37,6 +37,7 @@ pub fn parse(source: &str, diags: &mut Diagnostics) -> Option<SceneFile> {
     for (key, value) in doc.get_ref() {
         match key.get_ref().as_ref() {
             "render" => file.render = deserialize(value, diags).unwrap_or_default(),
+            "animation" => file.animation = deserialize(value, diags),
             "camera" => {
                 file.camera = deserialize(value, diags);
                 if file.camera.is_none() {

@@ -2,6 +2,7 @@
 //! ([`load`]), validation and construction of the runtime [`Scene`]
 //! ([`build`]), errors located by line and column ([`error`]).
 
+pub mod animation;
 pub mod build;
 pub mod error;
 pub mod format;
@@ -50,6 +51,11 @@ pub struct Scene {
     pub warnings: Vec<String>,
     /// What loading built and what it cost.
     pub inventory: Inventory,
+    /// `[animation]`, if the file has one.
+    pub animation: Option<animation::Animation>,
+    /// Whether any value is keyed per frame (then each frame is built
+    /// anew).
+    pub animated: bool,
 }
 
 /// What a scene holds beyond its primitives, and what building it cost.

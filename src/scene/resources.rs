@@ -28,6 +28,8 @@ pub struct LoadOptions {
     pub allow_read: Vec<PathBuf>,
     /// Budget for decoded textures, in bytes.
     pub texture_budget: u64,
+    /// The animation frame to build: keyed values are taken at it.
+    pub frame: u32,
 }
 
 impl Default for LoadOptions {
@@ -35,6 +37,7 @@ impl Default for LoadOptions {
         LoadOptions {
             allow_read: Vec::new(),
             texture_budget: limits::DEFAULT_TEXTURE_MIB << 20,
+            frame: 0,
         }
     }
 }
