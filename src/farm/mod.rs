@@ -8,6 +8,7 @@
 //! they finish: written atomically, so a part that exists is whole),
 //! `logs/`, the job scripts, and the merged frames.
 
+mod openjd;
 mod slurm;
 
 use std::io::Write;
@@ -25,6 +26,10 @@ pub enum FarmCommand {
     /// tile), throttled to K at once, and a merge job that runs after it.
     /// Run again after failures: only the missing parts are submitted.
     Slurm(SlurmArgs),
+    /// Write an Open Job Description template for SCENE (a render step
+    /// over Frame and Tile, a merge step after it), for `openjd run` or
+    /// AWS Deadline Cloud.
+    Openjd(FarmArgs),
     /// Show which frames and parts of a farm render are done and which are
     /// missing.
     Status {
@@ -33,8 +38,10 @@ pub enum FarmCommand {
     },
 }
 
+/// What every farm render takes: the scene, where the output goes, how
+/// the work is cut.
 #[derive(Args)]
-pub struct SlurmArgs {
+pub struct FarmArgs {
     /// Scene file (TOML).
     scene: PathBuf,
     /// Output folder: parts, logs, job scripts and the merged frames.
@@ -46,6 +53,15 @@ pub struct SlurmArgs {
     /// Frames A to B (inclusive).
     #[arg(long, value_name = "A-B", default_value = "0", value_parser = parse_frames)]
     frames: (u32, u32),
+    /// Format of the merged frames: exr, png, ppm or hdr.
+    #[arg(long, default_value = "exr", value_parser = ["exr", "png", "ppm", "hdr"])]
+    format: String,
+}
+
+#[derive(Args)]
+pub struct SlurmArgs {
+    #[command(flatten)]
+    common: FarmArgs,
     /// At most K tasks of the array run at once.
     #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..))]
     max_running: Option<u32>,
@@ -55,9 +71,6 @@ pub struct SlurmArgs {
     /// CPUs per task (each task renders on that many threads).
     #[arg(long, value_name = "C", value_parser = clap::value_parser!(u32).range(1..=1024))]
     cpus_per_task: Option<u32>,
-    /// Format of the merged frames: exr, png, ppm or hdr.
-    #[arg(long, default_value = "exr", value_parser = ["exr", "png", "ppm", "hdr"])]
-    format: String,
     /// Submit the jobs with sbatch and print their IDs.
     #[arg(long)]
     submit: bool,
@@ -144,6 +157,7 @@ impl Progress {
 pub fn run(command: FarmCommand) -> ExitCode {
     let result = match command {
         FarmCommand::Slurm(args) => slurm::run(&args),
+        FarmCommand::Openjd(args) => openjd::run(&args),
         FarmCommand::Status { outdir } => status(&outdir),
     };
     match result {
@@ -171,7 +185,7 @@ const PLAN: &str = "farm.toml";
 
 /// The plan for `args` in its output folder: created on the first run,
 /// and on later runs checked to be the same.
-fn plan_in(args: &SlurmArgs) -> Result<Plan, Failure> {
+fn plan_in(args: &FarmArgs) -> Result<Plan, Failure> {
     let bad = Failure::BadInput;
     let scene = args
         .scene

@@ -14,11 +14,12 @@ use super::{Failure, Plan, Progress, SlurmArgs, plan_in};
 const JOBS: &str = "jobs.txt";
 
 pub fn run(args: &SlurmArgs) -> Result<(), Failure> {
-    let plan = plan_in(args)?;
+    let plan = plan_in(&args.common)?;
     let outdir = args
+        .common
         .output
         .canonicalize()
-        .map_err(|e| Failure::Failed(format!("{}: {e}", args.output.display())))?;
+        .map_err(|e| Failure::Failed(format!("{}: {e}", args.common.output.display())))?;
     let prism = std::env::current_exe()
         .and_then(|p| p.canonicalize())
         .map_err(|e| Failure::Failed(format!("cannot find the prism executable: {e}")))?;
