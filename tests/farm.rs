@@ -45,16 +45,24 @@ fn scene(dir: &Path) -> &'static str {
 
 const SIZE: [&str; 6] = ["--width", "96", "--height", "70", "--spp", "2"];
 
+/// Renders scene `s` in `d` at the small test size with `extra` arguments.
+fn render(d: &Path, s: &str, extra: &[&str]) {
+    ok(d, &[&["render", s, "-q"], &SIZE[..], extra].concat());
+}
+
 #[test]
 fn tiles_and_crops_merge_to_the_whole_image_byte_for_byte() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let s = scene(d);
-    let render = |extra: &[&str]| ok(d, &[&["render", s, "-q"], &SIZE[..], extra].concat());
-    render(&["-o", "whole.exr"]);
-    render(&["-o", "whole.png"]);
+    render(d, s, &["-o", "whole.exr"]);
+    render(d, s, &["-o", "whole.png"]);
     for i in 0..5 {
-        render(&["--tile", &format!("{i}/5"), "-o", &format!("t{i}.exr")]);
+        render(
+            d,
+            s,
+            &["--tile", &format!("{i}/5"), "-o", &format!("t{i}.exr")],
+        );
     }
     // In another order, and the PNG from the same EXR parts.
     ok(
@@ -78,7 +86,7 @@ fn tiles_and_crops_merge_to_the_whole_image_byte_for_byte() {
         ("c", "0,37,23,70"),
         ("d", "37,96,23,70"),
     ] {
-        render(&["--crop", crop, "-o", &format!("{name}.exr")]);
+        render(d, s, &["--crop", crop, "-o", &format!("{name}.exr")]);
     }
     ok(
         d,
@@ -86,7 +94,7 @@ fn tiles_and_crops_merge_to_the_whole_image_byte_for_byte() {
     );
     assert!(bytes(d, "whole.exr") == bytes(d, "g.exr"));
     // A crop's PNG is the same pixels as that part of the whole PNG.
-    render(&["--crop", "10,30,40,50", "-o", "crop.png"]);
+    render(d, s, &["--crop", "10,30,40,50", "-o", "crop.png"]);
     let whole = image::open(d.join("whole.png")).unwrap().to_rgb8();
     let crop = image::open(d.join("crop.png")).unwrap().to_rgb8();
     assert_eq!(crop.dimensions(), (20, 10));
@@ -100,12 +108,15 @@ fn merge_refuses_mixed_overlapping_and_incomplete_parts() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let s = scene(d);
-    let render = |extra: &[&str]| ok(d, &[&["render", s, "-q"], &SIZE[..], extra].concat());
     for i in 0..3 {
-        render(&["--tile", &format!("{i}/3"), "-o", &format!("t{i}.exr")]);
+        render(
+            d,
+            s,
+            &["--tile", &format!("{i}/3"), "-o", &format!("t{i}.exr")],
+        );
     }
-    render(&["--tile", "1/3", "--seed", "9", "-o", "seed9.exr"]);
-    render(&["--tile", "1/3", "--frame", "4", "-o", "frame4.exr"]);
+    render(d, s, &["--tile", "1/3", "--seed", "9", "-o", "seed9.exr"]);
+    render(d, s, &["--tile", "1/3", "--frame", "4", "-o", "frame4.exr"]);
     ok(
         d,
         &[
@@ -113,7 +124,7 @@ fn merge_refuses_mixed_overlapping_and_incomplete_parts() {
             "-o", "spp3.exr",
         ],
     );
-    render(&["--crop", "0,10,20,30", "-o", "over.exr"]);
+    render(d, s, &["--crop", "0,10,20,30", "-o", "over.exr"]);
     refused(
         d,
         &["merge", "t0.exr", "seed9.exr", "t2.exr", "-o", "out.png"],
@@ -159,32 +170,21 @@ fn merge_refuses_mixed_overlapping_and_incomplete_parts() {
         "its scene_sha256 is",
     );
     // Not a part at all.
-    ok(
-        d,
-        &[&["render", s, "-q"], &SIZE[..], &["-o", "plain.png"]].concat(),
-    );
+    render(d, s, &["-o", "plain.png"]);
     refused(d, &["merge", "plain.png", "-o", "out.png"], "plain.png:");
     // Bad regions are exit 2 before rendering.
-    refused(
-        d,
-        &["render", s, "--crop", "5,5,0,3", "-o", "out.png"],
-        "empty or reversed",
-    );
-    refused(
-        d,
-        &["render", s, "--crop", "0,9999,0,3", "-o", "out.png"],
-        "outside",
-    );
-    refused(
-        d,
-        &["render", s, "--tile", "3/3", "-o", "out.png"],
-        "0 <= I < N",
-    );
-    refused(
-        d,
-        &["render", s, "--frames", "1-3", "-o", "out.png"],
-        "need a run of #",
-    );
+    for (args, expected) in [
+        (["--crop", "5,5,0,3"], "empty or reversed"),
+        (["--crop", "0,9999,0,3"], "outside"),
+        (["--tile", "3/3"], "0 <= I < N"),
+        (["--frames", "1-3"], "need a run of #"),
+    ] {
+        refused(
+            d,
+            &[&["render", s, "-o", "out.png"], &args[..]].concat(),
+            expected,
+        );
+    }
 }
 
 #[test]
@@ -192,40 +192,13 @@ fn frames_render_alone_as_in_a_sequence() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let s = scene(d);
-    ok(
-        d,
-        &[
-            &["render", s, "-q"],
-            &SIZE[..],
-            &["--frames", "2-4", "-o", "seq_###.png"],
-        ]
-        .concat(),
-    );
-    ok(
-        d,
-        &[
-            &["render", s, "-q"],
-            &SIZE[..],
-            &["--frame", "3", "-o", "alone.png"],
-        ]
-        .concat(),
-    );
+    render(d, s, &["--frames", "2-4", "-o", "seq_###.png"]);
+    render(d, s, &["--frame", "3", "-o", "alone.png"]);
     assert!(bytes(d, "seq_003.png") == bytes(d, "alone.png"));
     // Frames differ in their samples; frame 0 is the still.
     assert!(bytes(d, "seq_002.png") != bytes(d, "seq_003.png"));
-    ok(
-        d,
-        &[
-            &["render", s, "-q"],
-            &SIZE[..],
-            &["--frame", "0", "-o", "f0.png"],
-        ]
-        .concat(),
-    );
-    ok(
-        d,
-        &[&["render", s, "-q"], &SIZE[..], &["-o", "still.png"]].concat(),
-    );
+    render(d, s, &["--frame", "0", "-o", "f0.png"]);
+    render(d, s, &["-o", "still.png"]);
     assert!(bytes(d, "f0.png") == bytes(d, "still.png"));
 }
 
