@@ -6,6 +6,7 @@
 //! SIGTERM or SIGHUP); on bad input or interruption nothing is written and
 //! no temporary file remains (SIGKILL cannot be caught: its one exception).
 
+mod explain;
 mod merge;
 mod render;
 
@@ -19,6 +20,7 @@ use prism::scene::LoadOptions;
 use prism::{Scene, SceneError, limits};
 
 use crate::farm::FarmCommand;
+use explain::ExplainArgs;
 use merge::MergeArgs;
 use render::RenderArgs;
 pub use render::parse_frames;
@@ -36,6 +38,9 @@ enum Command {
     /// Render a scene to an image (.png, .ppm, .exr, .hdr), a region of it
     /// or a range of frames.
     Render(RenderArgs),
+    /// Explain one pixel: its ray tree and the terms of the Whitted
+    /// formula at every hit.
+    Explain(ExplainArgs),
     /// Merge EXR parts of one frame (from --crop or --tile) into the whole
     /// image.
     Merge(MergeArgs),
@@ -111,6 +116,7 @@ pub fn run() -> ExitCode {
         Command::Check { scene, load } => check(&scene, &load),
         Command::Render(args) => render::render_command(&args),
         Command::Merge(args) => merge::merge_command(&args),
+        Command::Explain(args) => explain::explain_command(&args),
         Command::Farm(command) => crate::farm::run(command),
     }
 }

@@ -27,24 +27,11 @@ pub struct RenderArgs {
     /// (`out_####.png`); needed with --frames.
     #[arg(short, long, default_value = "render.png")]
     output: PathBuf,
-    /// Image width in pixels (overrides the scene).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=i64::from(limits::MAX_IMAGE_SIDE)))]
-    width: Option<u32>,
-    /// Image height in pixels (overrides the scene).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=i64::from(limits::MAX_IMAGE_SIDE)))]
-    height: Option<u32>,
-    /// Samples per pixel (overrides the scene).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=i64::from(limits::MAX_SPP)))]
-    spp: Option<u32>,
-    /// Longest ray path counting the camera ray (overrides the scene).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=i64::from(limits::MAX_DEPTH)))]
-    max_depth: Option<u32>,
+    #[command(flatten)]
+    overrides: SettingsArgs,
     /// Worker threads (default: all cores).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
     threads: Option<u32>,
-    /// Seed of the sample streams (overrides the scene).
-    #[arg(long)]
-    seed: Option<u64>,
     /// Render only pixels X0 <= x < X1, Y0 <= y < Y1 (EXR: a data window in
     /// the whole frame; other formats: the region alone).
     #[arg(long, value_name = "X0,X1,Y0,Y1", value_parser = parse_crop, conflicts_with = "tile")]
@@ -69,6 +56,40 @@ pub struct RenderArgs {
     quiet: bool,
     #[command(flatten)]
     load: LoadArgs,
+}
+
+/// Settings the command line may override.
+#[derive(Args)]
+pub struct SettingsArgs {
+    /// Image width in pixels (overrides the scene).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=i64::from(limits::MAX_IMAGE_SIDE)))]
+    width: Option<u32>,
+    /// Image height in pixels (overrides the scene).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=i64::from(limits::MAX_IMAGE_SIDE)))]
+    height: Option<u32>,
+    /// Samples per pixel (overrides the scene).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=i64::from(limits::MAX_SPP)))]
+    spp: Option<u32>,
+    /// Longest ray path counting the camera ray (overrides the scene).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=i64::from(limits::MAX_DEPTH)))]
+    max_depth: Option<u32>,
+    /// Seed of the sample streams (overrides the scene).
+    #[arg(long)]
+    seed: Option<u64>,
+}
+
+impl SettingsArgs {
+    /// The scene's settings with these overrides.
+    pub fn apply(&self, scene: &RenderSettings) -> RenderSettings {
+        RenderSettings {
+            width: self.width.unwrap_or(scene.width),
+            height: self.height.unwrap_or(scene.height),
+            spp: self.spp.unwrap_or(scene.spp),
+            max_depth: self.max_depth.unwrap_or(scene.max_depth),
+            seed: self.seed.unwrap_or(scene.seed),
+            ..*scene
+        }
+    }
 }
 
 fn parse_crop(s: &str) -> Result<[u32; 4], String> {
@@ -236,13 +257,8 @@ pub fn render_command(args: &RenderArgs) -> ExitCode {
         }
     }
     let settings = RenderSettings {
-        width: args.width.unwrap_or(scene.settings.width),
-        height: args.height.unwrap_or(scene.settings.height),
-        spp: args.spp.unwrap_or(scene.settings.spp),
-        max_depth: args.max_depth.unwrap_or(scene.settings.max_depth),
-        seed: args.seed.unwrap_or(scene.settings.seed),
         threads: args.threads.map(|t| t as usize),
-        ..scene.settings
+        ..args.overrides.apply(&scene.settings)
     };
     if let Err(e) = settings.check() {
         return bad(e);

@@ -3,6 +3,7 @@
 //! the thread count or the tile order.
 
 mod checkpoint;
+pub mod explain;
 mod film;
 mod region;
 mod stats;
@@ -23,7 +24,7 @@ use crate::limits;
 use crate::math::rng::PixelRng;
 use crate::math::sampling::Strata;
 use crate::scene::Scene;
-use crate::shading::whitted::{Whitted, WhittedSettings};
+use crate::shading::whitted::{Recorder, Whitted, WhittedSettings};
 
 /// Side of the square tiles the image is cut into.
 const TILE: u32 = 16;
@@ -262,10 +263,27 @@ pub fn render_pixel(
     y: u32,
     stats: &mut RayStats,
 ) -> DVec3 {
+    render_pixel_recorded(scene, tracer, settings, x, y, stats, usize::MAX, &mut ()).0
+}
+
+/// [`render_pixel`], with sample `recorded` traced through `recorder`;
+/// returns the pixel and that sample's radiance.
+#[allow(clippy::too_many_arguments)]
+pub fn render_pixel_recorded<R: Recorder>(
+    scene: &Scene,
+    tracer: &Whitted,
+    settings: &RenderSettings,
+    x: u32,
+    y: u32,
+    stats: &mut RayStats,
+    recorded: usize,
+    recorder: &mut R,
+) -> (DVec3, DVec3) {
     let mut rng = PixelRng::new(frame_seed(settings.seed, settings.frame), x, y);
     let strata = Strata::new(settings.spp as usize);
     let spp = strata.len();
     let mut sum = DVec3::ZERO;
+    let mut sample_radiance = DVec3::ZERO;
     for s in 0..spp {
         let offset = if spp == 1 {
             glam::DVec2::splat(0.5)
@@ -278,9 +296,16 @@ pub fn render_pixel(
             settings.width,
             settings.height,
         );
-        sum += tracer.radiance(&ray, &mut rng, stats);
+        let radiance = if s == recorded {
+            let r = tracer.radiance_recorded(&ray, &mut rng, stats, recorder);
+            sample_radiance = r;
+            r
+        } else {
+            tracer.radiance(&ray, &mut rng, stats)
+        };
+        sum += radiance;
     }
-    sum / spp as f64
+    (sum / spp as f64, sample_radiance)
 }
 
 /// The seed of frame `frame`'s pixel streams: the scene's seed for frame

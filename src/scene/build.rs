@@ -9,12 +9,12 @@ use std::sync::Arc;
 use glam::{DAffine3, DMat3, DMat4, DQuat, DVec3, DVec4};
 use toml::Spanned;
 
-use super::Scene;
 use super::animation::{Animated, Animation, AnimationDesc, Interpolation, Lerp};
 use super::error::Diagnostics;
 use super::format::*;
 use super::models::{ModelCamera, load_model};
 use super::resources::{LoadOptions, Resources};
+use super::{Names, Scene};
 
 /// How messages name object `index`.
 fn label_of(d: &ObjectDesc, index: usize) -> String {
@@ -96,23 +96,48 @@ pub fn check(
         let m = c.material(name, desc);
         c.materials.push(m);
     }
+    let mut names = Names::default();
     let lights: Vec<Light> = file
         .lights
         .iter()
-        .filter_map(|(name, d)| c.light(name, d))
+        .filter_map(|(name, d)| {
+            let light = c.light(name, d)?;
+            names.lights.push(name.clone());
+            Some(light)
+        })
         .collect();
     let mut primitives: Vec<Primitive> =
         Vec::with_capacity(file.objects.len() + file.object_tables.len());
+    // Named objects' primitives (a model may bring several), for messages
+    // and `prism explain`.
+    let mut add =
+        |primitives: &mut Vec<Primitive>, built: Vec<Primitive>, name: &Option<String>| {
+            if let Some(name) = name {
+                for i in primitives.len()..primitives.len() + built.len() {
+                    names.objects.insert(i as u32, name.clone());
+                }
+            }
+            primitives.extend(built);
+        };
     for (i, o) in file.objects.iter().enumerate() {
-        primitives.extend(c.object(i, o, &material_index, &file.unparsed));
+        let built = c.object(i, o, &material_index, &file.unparsed);
+        add(&mut primitives, built, &o.get_ref().name);
     }
     // Each table is parsed, built and its syntax tree dropped in turn.
     for (i, range) in file.object_tables.iter().enumerate() {
         c.diags.set_offset(range.start);
         if let Some(o) = super::load::object(range.clone(), c.diags) {
-            primitives.extend(c.object(i, &o, &material_index, &file.unparsed));
+            let built = c.object(i, &o, &material_index, &file.unparsed);
+            add(&mut primitives, built, &o.get_ref().name);
         }
         c.diags.set_offset(0);
+    }
+    names.materials = file.materials.keys().cloned().collect();
+    for i in names.materials.len()..c.materials.len() {
+        names.materials.push(format!("model material {i}"));
+    }
+    for i in names.lights.len()..names.lights.len() + c.model_lights.len() {
+        names.lights.push(format!("model light {i}"));
     }
     let camera = camera.or(c.model_camera);
     // A [camera] that failed to parse is already reported; a model that
@@ -154,6 +179,7 @@ pub fn check(
             settings,
             animation,
             animated: c.keyed,
+            names,
         },
     })
 }

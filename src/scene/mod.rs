@@ -56,6 +56,20 @@ pub struct Scene {
     /// Whether any value is keyed per frame (then each frame is built
     /// anew).
     pub animated: bool,
+    /// What the file calls its objects, materials and lights.
+    pub names: Names,
+}
+
+/// Names from the scene file, for messages and `prism explain`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Names {
+    /// Named objects' primitives, by primitive index (unnamed ones are
+    /// absent).
+    pub objects: std::collections::BTreeMap<u32, String>,
+    /// Material names, by material index.
+    pub materials: Vec<String>,
+    /// Light names, by light index.
+    pub lights: Vec<String>,
 }
 
 /// What a scene holds beyond its primitives, and what building it cost.

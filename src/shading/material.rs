@@ -91,6 +91,14 @@ impl Material {
     /// Blinn). `n`, `l`, `view` are unit; the highlight is white.
     #[inline]
     pub fn phong(&self, od: DVec3, n: DVec3, l: DVec3, view: DVec3) -> DVec3 {
+        let (diffuse, specular) = self.phong_terms(od, n, l, view);
+        diffuse + DVec3::splat(specular)
+    }
+
+    /// The two terms of [`phong`](Self::phong): the diffuse kd·Od·max(0, N·L)
+    /// and the (white) specular ks·max(0, R·V)ⁿ.
+    #[inline]
+    pub fn phong_terms(&self, od: DVec3, n: DVec3, l: DVec3, view: DVec3) -> (DVec3, f64) {
         let n_dot_l = n.dot(l).max(0.0);
         let specular = if self.ks > 0.0 && n_dot_l > 0.0 {
             let highlight = match self.highlight {
@@ -101,7 +109,7 @@ impl Material {
         } else {
             0.0
         };
-        self.kd * od * n_dot_l + DVec3::splat(specular)
+        (self.kd * od * n_dot_l, specular)
     }
 }
 

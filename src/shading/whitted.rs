@@ -93,13 +93,76 @@ pub struct Whitted<'a> {
     settings: WhittedSettings,
 }
 
-/// What kind of ray `trace` follows, for the statistics.
+/// What kind of ray `trace` follows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum RayKind {
+pub enum RayKind {
+    /// From the camera.
     Camera,
+    /// Reflected: R = I − 2N(I·N).
     Reflection,
+    /// Refracted by Snell's law.
     Refraction,
 }
+
+/// Why a branch of the ray tree ends.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stop {
+    /// The ray hit nothing: it brings the background.
+    Miss,
+    /// The path reached `max_depth`: no secondary rays.
+    Depth,
+    /// The reflected (or, below, refracted) ray's weight in the pixel is
+    /// below `min_weight`.
+    ReflectionWeight,
+    /// The refracted ray's weight is below `min_weight`.
+    RefractionWeight,
+}
+
+/// Hears what the tracer does, step by step, to explain a pixel (see
+/// `shading::explain`). Every method does nothing by default; `()` hears
+/// nothing and costs nothing (the calls compile away).
+pub trait Recorder {
+    /// A ray starts: its kind, depth (1 = camera), weight in the pixel.
+    fn ray(&mut self, kind: RayKind, depth: u32, weight: DVec3, ray: &Ray) {
+        let _ = (kind, depth, weight, ray);
+    }
+    /// It hits `hit`; `n` is the shading normal facing the ray, `od` the
+    /// surface colour.
+    fn hit(&mut self, hit: &Hit, entering: bool, n: DVec3, od: DVec3) {
+        let _ = (hit, entering, n, od);
+    }
+    /// The ambient term ka·Od·Ia.
+    fn ambient(&mut self, term: DVec3) {
+        let _ = term;
+    }
+    /// One sample of light `light` towards unit `direction`, with its
+    /// falloff, and the visibility its shadow feeler found (not called for
+    /// samples behind the surface, which need no feeler).
+    fn feeler(&mut self, light: usize, direction: DVec3, falloff: f64, visibility: DVec3) {
+        let _ = (light, direction, falloff, visibility);
+    }
+    /// Light `light`'s whole contribution, over `samples` samples.
+    fn light(&mut self, light: usize, samples: usize, contribution: DVec3) {
+        let _ = (light, samples, contribution);
+    }
+    /// The weights of the secondary rays at this hit, the indices on the
+    /// incoming and the far side, and whether total internal reflection
+    /// moved the transmitted weight to reflection.
+    fn split(&mut self, kr: DVec3, kt: DVec3, eta: Option<(f64, f64)>, tir: bool) {
+        let _ = (kr, kt, eta, tir);
+    }
+    /// A branch ends here.
+    fn stop(&mut self, why: Stop) {
+        let _ = why;
+    }
+    /// The ray's colour, once its subtree is done.
+    fn done(&mut self, color: DVec3) {
+        let _ = color;
+    }
+}
+
+/// Hears nothing.
+impl Recorder for () {}
 
 /// Where a ray stands in the ray tree.
 #[derive(Clone, Copy, Debug)]
@@ -154,22 +217,55 @@ impl<'a> Whitted<'a> {
 
     /// The colour seen along a camera ray.
     pub fn radiance(&self, ray: &Ray, rng: &mut PixelRng, stats: &mut RayStats) -> DVec3 {
+        self.radiance_recorded(ray, rng, stats, &mut ())
+    }
+
+    /// [`radiance`](Self::radiance), telling `recorder` every step.
+    pub fn radiance_recorded<R: Recorder>(
+        &self,
+        ray: &Ray,
+        rng: &mut PixelRng,
+        stats: &mut RayStats,
+        recorder: &mut R,
+    ) -> DVec3 {
         let path = PathState {
             kind: RayKind::Camera,
             depth: 1,
             weight: DVec3::ONE,
             media: Media::default(),
         };
-        self.trace(ray, path, rng, stats)
+        self.trace(ray, path, rng, stats, recorder)
     }
 
-    fn trace(&self, ray: &Ray, path: PathState, rng: &mut PixelRng, stats: &mut RayStats) -> DVec3 {
+    fn trace<R: Recorder>(
+        &self,
+        ray: &Ray,
+        path: PathState,
+        rng: &mut PixelRng,
+        stats: &mut RayStats,
+        rec: &mut R,
+    ) -> DVec3 {
+        let color = self.trace_inner(ray, path, rng, stats, rec);
+        rec.done(color);
+        color
+    }
+
+    fn trace_inner<R: Recorder>(
+        &self,
+        ray: &Ray,
+        path: PathState,
+        rng: &mut PixelRng,
+        stats: &mut RayStats,
+        rec: &mut R,
+    ) -> DVec3 {
         match path.kind {
             RayKind::Camera => stats.camera += 1,
             RayKind::Reflection => stats.reflection += 1,
             RayKind::Refraction => stats.refraction += 1,
         }
+        rec.ray(path.kind, path.depth, path.weight, ray);
         let Some(hit) = self.scene.aggregate.closest_hit(ray, f64::INFINITY) else {
+            rec.stop(Stop::Miss);
             return self.scene.background;
         };
         let material_index = hit.material;
@@ -190,27 +286,35 @@ impl<'a> Whitted<'a> {
             od: material.texture.color(hit.point, hit.normal, hit.uv),
         };
 
+        rec.hit(&hit, entering, point.n, point.od);
         let mut color = material.ka * point.od * self.scene.ambient;
-        for light in &self.scene.lights {
-            color += self.direct(light, &point, rng, stats);
+        rec.ambient(color);
+        for (index, light) in self.scene.lights.iter().enumerate() {
+            color += self.direct(index, light, &point, rng, stats, rec);
         }
         if path.depth >= self.settings.max_depth {
+            rec.stop(Stop::Depth);
             return color;
         }
 
-        let split = self.split(&point, material_index, entering, path.media);
-        if split.kr != DVec3::ZERO && self.worth_tracing(path.weight * split.kr) {
-            let r = Ray::spawn(hit.point, hit.normal, reflect(ray.direction, point.n));
-            let child = path.child(RayKind::Reflection, split.kr, path.media);
-            color += split.kr * self.trace(&r, child, rng, stats);
+        let split = self.split(&point, material_index, entering, path.media, rec);
+        if split.kr != DVec3::ZERO {
+            if self.worth_tracing(path.weight * split.kr) {
+                let r = Ray::spawn(hit.point, hit.normal, reflect(ray.direction, point.n));
+                let child = path.child(RayKind::Reflection, split.kr, path.media);
+                color += split.kr * self.trace(&r, child, rng, stats, rec);
+            } else {
+                rec.stop(Stop::ReflectionWeight);
+            }
         }
-        if let Some(t) = split
-            .refracted
-            .filter(|_| self.worth_tracing(path.weight * split.kt))
-        {
-            let r = Ray::spawn(hit.point, hit.normal, t.normalize());
-            let child = path.child(RayKind::Refraction, split.kt, split.media_beyond);
-            color += split.kt * self.trace(&r, child, rng, stats);
+        if let Some(t) = split.refracted {
+            if self.worth_tracing(path.weight * split.kt) {
+                let r = Ray::spawn(hit.point, hit.normal, t.normalize());
+                let child = path.child(RayKind::Refraction, split.kt, split.media_beyond);
+                color += split.kt * self.trace(&r, child, rng, stats, rec);
+            } else {
+                rec.stop(Stop::RefractionWeight);
+            }
         }
         color
     }
@@ -224,16 +328,18 @@ impl<'a> Whitted<'a> {
     /// kr, kt and the refracted direction at a hit: the material's weights,
     /// or their sum split by Fresnel if asked; under total internal
     /// reflection the transmitted weight goes to reflection.
-    fn split(
+    fn split<R: Recorder>(
         &self,
         point: &ShadingPoint,
         material_index: u32,
         entering: bool,
         media: Media,
+        rec: &mut R,
     ) -> Split {
         let material = point.material;
         let (mut kr, mut kt) = (material.kr, material.kt);
         if kt == DVec3::ZERO {
+            rec.split(kr, kt, None, false);
             return Split {
                 kr,
                 kt,
@@ -265,6 +371,7 @@ impl<'a> Whitted<'a> {
             // Total internal reflection: all the energy is reflected.
             (kr, kt) = (kr + kt, DVec3::ZERO);
         }
+        rec.split(kr, kt, Some((eta_i, eta_t)), refracted.is_none());
         Split {
             kr,
             kt,
@@ -275,12 +382,14 @@ impl<'a> Whitted<'a> {
 
     /// One light's local (Phong) contribution, averaged over its samples,
     /// each weighted by its shadow feeler's visibility.
-    fn direct(
+    fn direct<R: Recorder>(
         &self,
+        index: usize,
         light: &Light,
         point: &ShadingPoint,
         rng: &mut PixelRng,
         stats: &mut RayStats,
+        rec: &mut R,
     ) -> DVec3 {
         let sampler = light.sampler(point.hit.point);
         let count = sampler.count();
@@ -306,6 +415,7 @@ impl<'a> Whitted<'a> {
                 continue;
             }
             let visibility = self.visibility(&point.hit, &sample, candidates.as_mut(), stats);
+            rec.feeler(index, sample.direction, sample.falloff, visibility);
             if visibility != DVec3::ZERO {
                 sum += visibility
                     * sample.falloff
@@ -314,7 +424,9 @@ impl<'a> Whitted<'a> {
                         .phong(point.od, point.n, sample.direction, point.view);
             }
         }
-        light.radiance * sum / count as f64
+        let contribution = light.radiance * sum / count as f64;
+        rec.light(index, count, contribution);
+        contribution
     }
 
     /// The fraction of light that reaches the hit along a shadow feeler, per

@@ -1,0 +1,200 @@
+//! `prism explain`: the ray tree of one sample of one pixel, with the
+//! terms of the Whitted formula at every hit, as text or JSON.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::Args;
+use prism::Scene;
+use prism::render::explain::{Explanation, RayNode, explain};
+
+use super::render::SettingsArgs;
+use super::{BAD_INPUT, LoadArgs, report_scene_error};
+
+#[derive(Args)]
+pub struct ExplainArgs {
+    /// Scene file (TOML); the built-in demo scene when omitted.
+    scene: Option<PathBuf>,
+    /// The pixel, counted from the top-left corner.
+    #[arg(long, value_name = "X,Y", value_parser = parse_pixel)]
+    pixel: (u32, u32),
+    /// Which of the pixel's samples (0-based).
+    #[arg(long, default_value_t = 0)]
+    sample: usize,
+    /// Animation frame.
+    #[arg(long, default_value_t = 0)]
+    frame: u32,
+    /// One JSON object (its `radiance` is the sample's RGB) instead of text.
+    #[arg(long)]
+    json: bool,
+    #[command(flatten)]
+    overrides: SettingsArgs,
+    #[command(flatten)]
+    load: LoadArgs,
+}
+
+fn parse_pixel(s: &str) -> Result<(u32, u32), String> {
+    let (x, y) = s.split_once(',').ok_or("expected X,Y, e.g. 320,240")?;
+    Ok((
+        x.trim()
+            .parse()
+            .map_err(|_| "expected X,Y with whole numbers")?,
+        y.trim()
+            .parse()
+            .map_err(|_| "expected X,Y with whole numbers")?,
+    ))
+}
+
+pub fn explain_command(args: &ExplainArgs) -> ExitCode {
+    let mut options = match args.load.options() {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(BAD_INPUT);
+        }
+    };
+    options.frame = args.frame;
+    let scene = match &args.scene {
+        Some(path) => match Scene::load_with(path, &options) {
+            Ok(s) => s,
+            Err(e) => return report_scene_error(&e),
+        },
+        None => Scene::demo(),
+    };
+    let settings = prism::RenderSettings {
+        frame: args.frame,
+        ..args.overrides.apply(&scene.settings)
+    };
+    let (x, y) = args.pixel;
+    let explanation = match explain(&scene, &settings, x, y, args.sample) {
+        Ok(e) => e,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(BAD_INPUT);
+        }
+    };
+    let text = if args.json {
+        serde_json::to_string_pretty(&explanation).unwrap_or_default()
+    } else {
+        describe(&explanation)
+    };
+    // A reader that stops early (`| head`) is not an error.
+    let _ = writeln!(std::io::stdout().lock(), "{text}");
+    ExitCode::SUCCESS
+}
+
+fn rgb(v: [f64; 3]) -> String {
+    format!("({:.6}, {:.6}, {:.6})", v[0], v[1], v[2])
+}
+
+/// The tree as indented text, one ray per block.
+fn describe(e: &Explanation) -> String {
+    let mut out = format!(
+        "pixel {},{} sample {} of {}: radiance {}{}\n",
+        e.pixel[0],
+        e.pixel[1],
+        e.sample,
+        e.samples,
+        rgb(e.radiance),
+        if e.samples > 1 {
+            format!(" (the pixel, over all samples: {})", rgb(e.pixel_radiance))
+        } else {
+            String::new()
+        }
+    );
+    node(&e.tree, 0, &mut out);
+    out
+}
+
+fn node(n: &RayNode, indent: usize, out: &mut String) {
+    let pad = "  ".repeat(indent);
+    let line = |out: &mut String, s: String| {
+        out.push_str(&pad);
+        out.push_str(&s);
+        out.push('\n');
+    };
+    line(
+        out,
+        format!(
+            "{} ray (depth {}, weight {}) from {} towards {}",
+            n.kind,
+            n.depth,
+            rgb(n.weight),
+            rgb(n.origin),
+            rgb(n.direction)
+        ),
+    );
+    match &n.hit {
+        None => line(
+            out,
+            format!("  misses everything: background {}", rgb(n.radiance)),
+        ),
+        Some(h) => {
+            line(
+                out,
+                format!(
+                    "  hits `{}` (primitive {}, material `{}`) at distance {:.6}, point {}, normal {}, {}{}",
+                    h.object,
+                    h.primitive,
+                    h.material,
+                    h.distance,
+                    rgb(h.point),
+                    rgb(h.normal),
+                    if h.entering { "entering" } else { "leaving" },
+                    match (h.eta_incoming, h.eta_beyond) {
+                        (Some(a), Some(b)) => format!(", index {a} -> {b}"),
+                        _ => String::new(),
+                    }
+                ),
+            );
+            line(out, format!("  ambient ka*Od*Ia = {}", rgb(n.ambient)));
+            for l in &n.lights {
+                line(
+                    out,
+                    format!(
+                        "  light `{}`: {} samples, {} feelers, visible {}; diffuse kd*Od*max(0,N.L) = {}, specular ks*max(0,R.V)^n = {}; sum {}",
+                        l.light,
+                        l.samples,
+                        l.feelers,
+                        rgb(l.visible_fraction),
+                        rgb(l.diffuse),
+                        rgb(l.specular),
+                        rgb(l.contribution)
+                    ),
+                );
+            }
+            line(
+                out,
+                format!(
+                    "  kr = {}, kt = {}{}",
+                    rgb(n.kr),
+                    rgb(n.kt),
+                    if n.total_internal_reflection {
+                        " (total internal reflection: all of it reflected)"
+                    } else {
+                        ""
+                    }
+                ),
+            );
+        }
+    }
+    for why in &n.stopped {
+        line(out, format!("  stops: {why}"));
+    }
+    if let Some(r) = &n.reflected {
+        line(
+            out,
+            format!("  kr * I_reflected = {}:", rgb(n.reflected_term)),
+        );
+        node(r, indent + 2, out);
+    }
+    if let Some(t) = &n.refracted {
+        line(
+            out,
+            format!("  kt * I_refracted = {}:", rgb(n.refracted_term)),
+        );
+        node(t, indent + 2, out);
+    }
+    line(out, format!("  = {}", rgb(n.radiance)));
+}
