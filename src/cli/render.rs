@@ -11,7 +11,9 @@ use std::time::Instant;
 use clap::Args;
 use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
+use prism::image_io::OutputFormat;
 use prism::image_io::{ImageWriteError, Provenance, check_writable, write_film_unless};
+use prism::render::aov::{Aov, false_colour, render_aov};
 use prism::render::{Checkpoint, Region, RenderError, render_region};
 use prism::{RenderObserver, RenderSettings, Scene, limits};
 
@@ -51,6 +53,11 @@ pub struct RenderArgs {
     /// rendered. DIR is removed once the image is written.
     #[arg(long, value_name = "DIR")]
     checkpoint: Option<PathBuf>,
+    /// Write a debug view instead of the picture: normal, depth, object,
+    /// material, bounces, feelers or time (EXR: raw values; PNG, PPM:
+    /// false colour).
+    #[arg(long, value_name = "NAME")]
+    aov: Option<Aov>,
     /// Print nothing but errors.
     #[arg(short, long)]
     quiet: bool,
@@ -332,9 +339,18 @@ struct Job<'a> {
 impl Job<'_> {
     fn run(&self) -> ExitCode {
         let (args, settings, region) = (self.args, &self.settings, self.region);
+        let aov_name = args
+            .aov
+            .and_then(|a| Aov::ALL.iter().find(|(_, v)| *v == a))
+            .map(|(n, _)| *n);
         let provenance = Provenance {
             scene_hash: self.scene.inventory.content_hash.clone(),
-            settings: settings.pixel_key(),
+            // A debug view is another image: its parts never merge with
+            // the picture's.
+            settings: match aov_name {
+                Some(name) => format!("{} aov={name}", settings.pixel_key()),
+                None => settings.pixel_key(),
+            },
             seed: settings.seed,
             frame: settings.frame,
         };
@@ -404,7 +420,20 @@ impl Job<'_> {
             checkpoint,
             checkpoint_error: Mutex::new(None),
         };
-        let output = match render_region(self.scene, settings, region, &observer) {
+        let rendered = match args.aov {
+            Some(aov) => render_aov(self.scene, settings, region, aov, &observer).map(|mut o| {
+                let eight_bit = matches!(
+                    OutputFormat::from_path(self.output),
+                    Ok(OutputFormat::Png | OutputFormat::Ppm)
+                );
+                if eight_bit {
+                    o.film = false_colour(&o.film, aov);
+                }
+                o
+            }),
+            None => render_region(self.scene, settings, region, &observer),
+        };
+        let output = match rendered {
             Ok(o) => o,
             Err(RenderError::Cancelled) => {
                 observer.bar.abandon();

@@ -163,7 +163,7 @@ pub fn explain(
         x,
         y,
         &mut stats,
-        sample,
+        Some(sample),
         &mut recorder,
     );
     Ok(Explanation {

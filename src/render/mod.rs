@@ -2,6 +2,7 @@
 //! pixel draws from its own random stream, so the result does not depend on
 //! the thread count or the tile order.
 
+pub mod aov;
 mod checkpoint;
 pub mod explain;
 mod film;
@@ -187,6 +188,20 @@ pub fn render_region(
     region: Region,
     observer: &dyn RenderObserver,
 ) -> Result<RenderOutput, RenderError> {
+    render_with(scene, settings, region, observer, |tracer, x, y, stats| {
+        render_pixel(scene, tracer, settings, x, y, stats)
+    })
+}
+
+/// The render loop over `region`'s tiles, `pixel` computing each pixel's
+/// value (the radiance, or an AOV).
+fn render_with(
+    scene: &Scene,
+    settings: &RenderSettings,
+    region: Region,
+    observer: &dyn RenderObserver,
+    pixel: impl Fn(&Whitted, u32, u32, &mut RayStats) -> DVec3 + Sync,
+) -> Result<RenderOutput, RenderError> {
     settings.check().map_err(RenderError::Settings)?;
     if !Region::full(settings.width, settings.height).contains(&region) || region.area() == 0 {
         return Err(RenderError::Settings(format!(
@@ -230,7 +245,7 @@ pub fn render_region(
                         return None;
                     }
                     for x in tile.x0..tile.x1 {
-                        pixels.push(render_pixel(scene, &tracer, settings, x, y, &mut stats));
+                        pixels.push(pixel(&tracer, x, y, &mut stats));
                     }
                 }
                 let n = pixels.len() as u64;
@@ -263,11 +278,12 @@ pub fn render_pixel(
     y: u32,
     stats: &mut RayStats,
 ) -> DVec3 {
-    render_pixel_recorded(scene, tracer, settings, x, y, stats, usize::MAX, &mut ()).0
+    render_pixel_recorded(scene, tracer, settings, x, y, stats, None, &mut ()).0
 }
 
-/// [`render_pixel`], with sample `recorded` traced through `recorder`;
-/// returns the pixel and that sample's radiance.
+/// [`render_pixel`], with sample `recorded` (every sample: `None`) traced
+/// through `recorder`; returns the pixel and the last recorded sample's
+/// radiance.
 #[allow(clippy::too_many_arguments)]
 pub fn render_pixel_recorded<R: Recorder>(
     scene: &Scene,
@@ -276,7 +292,7 @@ pub fn render_pixel_recorded<R: Recorder>(
     x: u32,
     y: u32,
     stats: &mut RayStats,
-    recorded: usize,
+    recorded: Option<usize>,
     recorder: &mut R,
 ) -> (DVec3, DVec3) {
     let mut rng = PixelRng::new(frame_seed(settings.seed, settings.frame), x, y);
@@ -296,7 +312,7 @@ pub fn render_pixel_recorded<R: Recorder>(
             settings.width,
             settings.height,
         );
-        let radiance = if s == recorded {
+        let radiance = if recorded.is_none_or(|k| k == s) {
             let r = tracer.radiance_recorded(&ray, &mut rng, stats, recorder);
             sample_radiance = r;
             r
