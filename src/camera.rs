@@ -101,9 +101,60 @@ impl Camera {
     }
 }
 
+impl Camera {
+    /// Where `point` appears on the film of a `width` × `height` image, in
+    /// pixels from the top-left corner: the inverse of [`ray`](Self::ray).
+    /// `None` for points behind a perspective camera.
+    pub fn project(&self, point: DVec3, width: u32, height: u32) -> Option<(f64, f64)> {
+        let (w, h) = (f64::from(width), f64::from(height));
+        let aspect = w / h;
+        let d = point - self.position;
+        let (sx, sy) = match self.projection {
+            Projection::Perspective { fov, axis } => {
+                let z = d.dot(self.forward);
+                if z <= 0.0 {
+                    return None;
+                }
+                let half = transcendental::tan(0.5 * fov);
+                let (half_w, half_h) = match axis {
+                    FovAxis::Vertical => (half * aspect, half),
+                    FovAxis::Horizontal => (half, half / aspect),
+                };
+                (
+                    d.dot(self.right) / (z * half_w),
+                    d.dot(self.up) / (z * half_h),
+                )
+            }
+            Projection::Orthographic { view_height } => {
+                let half_h = 0.5 * view_height;
+                (
+                    d.dot(self.right) / (half_h * aspect),
+                    d.dot(self.up) / half_h,
+                )
+            }
+        };
+        Some((0.5 * (sx + 1.0) * w, 0.5 * (1.0 - sy) * h))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn project_inverts_ray() {
+        for camera in [
+            perspective(FovAxis::Vertical),
+            perspective(FovAxis::Horizontal),
+        ] {
+            for (x, y) in [(0.5, 0.5), (123.25, 77.0), (639.0, 479.5)] {
+                let r = camera.ray(x, y, 640, 480);
+                let (px, py) = camera.project(r.at(3.7), 640, 480).unwrap();
+                assert!((px - x).abs() < 1e-9 && (py - y).abs() < 1e-9, "{px},{py}");
+            }
+            assert_eq!(camera.project(DVec3::new(0.0, 0.0, 9.0), 640, 480), None);
+        }
+    }
 
     fn perspective(axis: FovAxis) -> Camera {
         Camera::look_at(

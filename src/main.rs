@@ -2,6 +2,7 @@
 
 mod cli;
 mod farm;
+mod serve;
 
 fn main() -> std::process::ExitCode {
     cli::run()

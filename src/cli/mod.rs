@@ -38,6 +38,9 @@ enum Command {
     /// Render a scene to an image (.png, .ppm, .exr, .hdr), a region of it
     /// or a range of frames.
     Render(RenderArgs),
+    /// Preview a scene in the browser: renders as you save, shows errors,
+    /// explains pixels.
+    Serve(crate::serve::ServeArgs),
     /// Explain one pixel: its ray tree and the terms of the Whitted
     /// formula at every hit.
     Explain(ExplainArgs),
@@ -74,7 +77,7 @@ pub struct LoadArgs {
 
 impl LoadArgs {
     /// The load options, or a message naming a folder that does not exist.
-    fn options(&self) -> Result<LoadOptions, String> {
+    pub fn options(&self) -> Result<LoadOptions, String> {
         let from_env = std::env::var_os("PRISM_ALLOW_READ")
             .map(|v| std::env::split_paths(&v).collect::<Vec<_>>())
             .unwrap_or_default();
@@ -117,6 +120,7 @@ pub fn run() -> ExitCode {
         Command::Render(args) => render::render_command(&args),
         Command::Merge(args) => merge::merge_command(&args),
         Command::Explain(args) => explain::explain_command(&args),
+        Command::Serve(args) => crate::serve::run(&args),
         Command::Farm(command) => crate::farm::run(command),
     }
 }

@@ -1,0 +1,213 @@
+// Prism's preview page: draws the linear radiance the server streams (with
+// the exposure applied and the sRGB transfer function, as `prism render`
+// writes PNG), follows the render, shows errors and explains pixels.
+"use strict";
+
+const state = {
+  generation: 0, width: 0, height: 0, radiance: null, phase: "connecting",
+  exposure: 0, status: null, explanation: null, dirty: false, coarseAt: null,
+};
+window.prism = state; // for the browser test
+
+const $ = (id) => document.getElementById(id);
+const canvas = $("picture"), ctx = canvas.getContext("2d");
+const rays = $("rays"), rctx = rays.getContext("2d");
+
+function decode(b64) {
+  const bytes = Uint8Array.from(atob(b64), (c) => c.charCodeAt(0));
+  return new Float32Array(bytes.buffer);
+}
+
+function resize(w, h) {
+  if (state.width === w && state.height === h && state.radiance) return;
+  state.width = w; state.height = h;
+  state.radiance = new Float32Array(w * h * 3);
+  for (const c of [canvas, rays]) { c.width = w; c.height = h; }
+  applyZoom();
+}
+
+// The same encoding as the PNG writer: clamp, sRGB, round to 8 bits.
+function srgb8(v) {
+  if (!(v > 0)) return 0;
+  if (v >= 1) return 255;
+  const s = v <= 0.0031308 ? 12.92 * v : 1.055 * Math.pow(v, 1 / 2.4) - 0.055;
+  return Math.round(s * 255);
+}
+
+function draw() {
+  state.dirty = false;
+  const { width: w, height: h, radiance } = state;
+  if (!radiance || !w) return;
+  const scale = Math.pow(2, state.exposure);
+  const img = ctx.createImageData(w, h);
+  for (let i = 0, j = 0; i < w * h * 3; i += 3, j += 4) {
+    img.data[j] = srgb8(radiance[i] * scale);
+    img.data[j + 1] = srgb8(radiance[i + 1] * scale);
+    img.data[j + 2] = srgb8(radiance[i + 2] * scale);
+    img.data[j + 3] = 255;
+  }
+  ctx.putImageData(img, 0, 0);
+}
+
+function redraw() {
+  if (!state.dirty) { state.dirty = true; requestAnimationFrame(draw); }
+}
+
+function putTile(x0, y0, w, h, data) {
+  const W = state.width;
+  for (let y = 0; y < h; y++) {
+    state.radiance.set(data.subarray(y * w * 3, (y + 1) * w * 3), ((y0 + y) * W + x0) * 3);
+  }
+  redraw();
+}
+
+function putCoarse(cw, ch, data) {
+  // Each coarse pixel covers an 8×8 block of the full picture.
+  const { width: W, height: H, radiance } = state;
+  for (let y = 0; y < H; y++) {
+    for (let x = 0; x < W; x++) {
+      const s = ((y >> 3) * cw + (x >> 3)) * 3, d = (y * W + x) * 3;
+      radiance[d] = data[s]; radiance[d + 1] = data[s + 1]; radiance[d + 2] = data[s + 2];
+    }
+  }
+  redraw();
+}
+
+async function loadPicture() {
+  const p = await (await fetch("/picture")).json();
+  if (!p.width) return;
+  resize(p.width, p.height);
+  state.radiance.set(decode(p.data));
+  redraw();
+}
+
+function showStatus(s) {
+  state.status = s;
+  state.phase = s.phase;
+  if (s.generation !== state.generation) {
+    state.generation = s.generation;
+  }
+  if (s.width && s.height) resize(s.width, s.height);
+  const phase = $("phase");
+  phase.textContent = s.phase;
+  phase.className = "phase " + s.phase;
+  $("progress").value = s.total ? s.done / s.total : 0;
+  $("eta").textContent = s.phase === "done" ? `done in ${s.elapsed_s.toFixed(2)} s`
+    : s.eta_s != null ? `ETA ${s.eta_s.toFixed(1)} s` : "";
+  $("summary").textContent = s.summary || "";
+  const errors = $("errors");
+  errors.hidden = !s.errors.length;
+  errors.textContent = s.errors.map((e) =>
+    `${e.file}:${e.line}:${e.column}: error: ${e.message}`).join("\n");
+}
+
+function connect() {
+  const events = new EventSource("/events");
+  events.addEventListener("status", (e) => showStatus(JSON.parse(e.data)));
+  events.addEventListener("frame", (e) => {
+    const f = JSON.parse(e.data);
+    state.coarseAt = performance.now();
+    putCoarse(f.width, f.height, decode(f.data));
+  });
+  events.addEventListener("tile", (e) => {
+    const t = JSON.parse(e.data);
+    if (state.radiance) putTile(t.x0, t.y0, t.w, t.h, decode(t.data));
+  });
+  events.addEventListener("lagged", loadPicture);
+  events.onopen = loadPicture;
+}
+
+// Exposure, zoom, the value under the cursor.
+$("exposure").oninput = (e) => {
+  state.exposure = parseFloat(e.target.value);
+  $("ev").textContent = `${state.exposure.toFixed(1)} EV`;
+  redraw();
+};
+function applyZoom() {
+  const z = parseInt($("zoom").value, 10);
+  $("zoomv").textContent = `${z}×`;
+  $("stage").style.transform = `scale(${z})`;
+  $("stage").style.width = `${state.width}px`;
+}
+$("zoom").oninput = applyZoom;
+
+function pixelAt(ev) {
+  const r = canvas.getBoundingClientRect();
+  const x = Math.floor((ev.clientX - r.left) / r.width * state.width);
+  const y = Math.floor((ev.clientY - r.top) / r.height * state.height);
+  return x >= 0 && y >= 0 && x < state.width && y < state.height ? [x, y] : null;
+}
+$("stage").onmousemove = (ev) => {
+  const p = pixelAt(ev);
+  if (!p || !state.radiance) return;
+  const i = (p[1] * state.width + p[0]) * 3, v = state.radiance;
+  $("cursor").textContent = `(${p[0]}, ${p[1]}) linear RGB ${v[i].toFixed(5)} ${v[i + 1].toFixed(5)} ${v[i + 2].toFixed(5)}`;
+};
+$("stage").onclick = (ev) => {
+  const p = pixelAt(ev);
+  if (p) explain(p[0], p[1]);
+};
+
+$("view-select").onchange = (e) => {
+  const img = $("aov");
+  if (!e.target.value) { img.hidden = true; return; }
+  img.src = `/aov.png?name=${e.target.value}&t=${Date.now()}`;
+  img.hidden = false;
+};
+
+// The inspector: the ray tree of one sample.
+const fmt = (v) => v.map((x) => x.toFixed(6)).join(", ");
+function nodeHtml(n) {
+  const rows = [];
+  const row = (k, v) => rows.push(`<tr><td>${k}</td><td>${v}</td></tr>`);
+  row("ray", `${n.kind}, depth ${n.depth}, weight (${fmt(n.weight)})`);
+  if (!n.hit) {
+    row("hit", "nothing: the background");
+  } else {
+    const h = n.hit;
+    row("hit", `<b>${escapeHtml(h.object)}</b> (material ${escapeHtml(h.material)}) at distance ${h.distance.toFixed(6)}`);
+    row("point / normal", `(${fmt(h.point)}) / (${fmt(h.normal)})`);
+    row("side", (h.entering ? "entering" : "leaving") +
+      (h.eta_incoming != null ? `, η ${h.eta_incoming} → ${h.eta_beyond}` : ""));
+    row("ka·Od·Ia", fmt(n.ambient));
+    for (const l of n.lights) {
+      row(`light ${escapeHtml(l.light)}`, `visible (${fmt(l.visible_fraction)}) of ${l.samples} samples, ${l.feelers} feelers`);
+      row("&nbsp; kd·Od·max(0,N·L)", fmt(l.diffuse));
+      row("&nbsp; ks·max(0,R·V)ⁿ", fmt(l.specular));
+    }
+    row("kr / kt", `(${fmt(n.kr)}) / (${fmt(n.kt)})` + (n.total_internal_reflection ? " — total internal reflection" : ""));
+    if (n.reflected) row("kr·I_reflected", fmt(n.reflected_term));
+    if (n.refracted) row("kt·I_refracted", fmt(n.refracted_term));
+  }
+  for (const s of n.stopped) rows.push(`<tr class="stop"><td>stops</td><td>${s}</td></tr>`);
+  row("= radiance", `<b>${fmt(n.radiance)}</b>`);
+  const kids = [n.reflected, n.refracted].filter(Boolean).map(nodeHtml).join("");
+  return `<div class="node ${n.kind}" data-kind="${n.kind}"><table>${rows.join("")}</table>${kids}</div>`;
+}
+function escapeHtml(s) {
+  return s.replace(/[&<>"]/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;" })[c]);
+}
+
+async function explain(x, y) {
+  const r = await fetch(`/explain?x=${x}&y=${y}&sample=0`);
+  if (!r.ok) { $("inspector").textContent = await r.text(); return; }
+  const e = await r.json();
+  state.explanation = e;
+  $("inspector").innerHTML =
+    `<p>Pixel (${x}, ${y}), sample ${e.sample} of ${e.samples}: radiance <b id="inspect-radiance">${fmt(e.radiance)}</b></p>` +
+    nodeHtml(e.tree);
+  // The sample's rays over the picture.
+  rctx.clearRect(0, 0, rays.width, rays.height);
+  const colours = { camera: "#ffd54f", reflected: "#4fc3f7", refracted: "#81c784" };
+  rctx.lineWidth = 1.5;
+  for (const s of e.segments) {
+    rctx.strokeStyle = colours[s.kind];
+    rctx.beginPath();
+    rctx.moveTo(s.screen[0], s.screen[1]);
+    rctx.lineTo(s.screen[2], s.screen[3]);
+    rctx.stroke();
+  }
+}
+
+$("scene").textContent = document.title;
+connect();
