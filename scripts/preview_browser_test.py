@@ -1,0 +1,197 @@
+"""The preview in a real browser (headless Chromium over WebDriver):
+the canvas shows what `prism render` writes, a click on the glass ball
+shows the tree `prism explain --json` gives, a save moves the ball, a broken
+save shows its located error and keeps the picture, a fix brings it back.
+Keeps screenshots in target/preview-screens/ (and the README's in
+docs/images/preview.png when asked). Run by scripts/test-preview-browser.sh.
+
+Usage: python preview_browser_test.py PRISM SCENE_DIR SCREENS_DIR [README_SHOT]
+"""
+
+import json
+import os
+import re
+import subprocess
+import sys
+import time
+
+from selenium import webdriver
+from selenium.webdriver.chrome.options import Options
+from selenium.webdriver.chrome.service import Service
+from selenium.webdriver.common.action_chains import ActionChains
+from selenium.webdriver.common.by import By
+
+PRISM, WORK, SCREENS = sys.argv[1:4]
+README_SHOT = sys.argv[4] if len(sys.argv) > 4 else None
+SCENE = os.path.join(WORK, "whitted.toml")
+os.makedirs(SCREENS, exist_ok=True)
+
+
+def fail(message):
+    print("FAIL:", message, file=sys.stderr)
+    sys.exit(1)
+
+
+def read_ppm(path):
+    data = open(path, "rb").read()
+    m = re.match(rb"P6\s+(\d+)\s+(\d+)\s+255\s", data)
+    w, h = int(m.group(1)), int(m.group(2))
+    return w, h, data[m.end():m.end() + w * h * 3]
+
+
+def reference(name):
+    out = os.path.join(WORK, name + ".ppm")
+    subprocess.run([PRISM, "render", SCENE, "-q", "-o", out], check=True)
+    return read_ppm(out)
+
+
+def explain_json(x, y):
+    out = subprocess.run([PRISM, "explain", SCENE, "--pixel", f"{x},{y}", "--json"],
+                         check=True, capture_output=True, text=True).stdout
+    return json.loads(out)
+
+
+server = subprocess.Popen([PRISM, "serve", SCENE, "--port", "0"], stdout=subprocess.PIPE, text=True)
+url = re.search(r"http://\S+", server.stdout.readline()).group(0)
+options = Options()
+for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--window-size=1500,900"):
+    options.add_argument(arg)
+driver = webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
+
+
+def wait(condition, what, timeout=60):
+    end = time.time() + timeout
+    while time.time() < end:
+        value = driver.execute_script(f"return {condition};")
+        if value:
+            return value
+        time.sleep(0.02)
+    fail(f"timed out waiting for {what}")
+
+
+def canvas_rgb():
+    b64 = driver.execute_script("""
+        const c = document.getElementById('picture'), d = c.getContext('2d')
+            .getImageData(0, 0, c.width, c.height).data;
+        let s = '';
+        for (let i = 0; i < d.length; i += 4) s += String.fromCharCode(d[i], d[i+1], d[i+2]);
+        return btoa(s);""")
+    import base64
+    return base64.b64decode(b64)
+
+
+def wait_done(generation_above):
+    wait(f"window.prism.generation > {generation_above} && window.prism.phase === 'done'",
+         "the render to finish")
+    time.sleep(0.3)  # the last tiles' redraw (requestAnimationFrame)
+    return driver.execute_script("return window.prism.generation;")
+
+
+def compare(shown, ref, what):
+    w, h, want = ref
+    if len(shown) != len(want):
+        fail(f"{what}: the canvas has {len(shown)} bytes, the render {len(want)}")
+    diffs = [abs(a - b) for a, b in zip(shown, want) if a != b]
+    if diffs and (max(diffs) > 1 or len(diffs) > len(want) * 0.001):
+        fail(f"{what}: {len(diffs)} of {len(want)} channel values differ (max {max(diffs)})")
+    print(f"ok: {what}: canvas equals prism render's picture "
+          f"({len(diffs)} channel values off by one of {len(want)})")
+
+
+try:
+    driver.get(url)
+    generation = wait_done(0)
+    first = reference("first")
+    compare(canvas_rgb(), first, "first render")
+    driver.save_screenshot(os.path.join(SCREENS, "1-render.png"))
+
+    # Click the glass ball: find one of its pixels with prism explain.
+    w, h, _ = first
+    target = None
+    for y in range(h // 4, 3 * h // 4, 8):
+        for x in range(w // 2, w, 8):
+            e = explain_json(x, y)
+            if e["tree"]["hit"] and e["tree"]["hit"]["object"] == "glass ball":
+                target, expected = (x, y), e
+                break
+        if target:
+            break
+    if not target:
+        fail("no pixel of the glass ball found")
+    canvas = driver.find_element(By.ID, "picture")
+    ActionChains(driver).move_to_element_with_offset(
+        canvas, target[0] + 0.5 - w / 2, target[1] + 0.5 - h / 2).click().perform()
+    wait("document.getElementById('inspect-radiance')", "the inspector")
+    shown = driver.execute_script("return window.prism.explanation;")
+    if shown["pixel"] != list(target):
+        fail(f"clicked {target}, the inspector shows {shown['pixel']}")
+
+    def close(a, b, path="tree"):
+        if isinstance(a, dict):
+            for k in b:
+                if k != "segments":
+                    close(a.get(k), b[k], f"{path}.{k}")
+        elif isinstance(a, list) and a and isinstance(a[0], (int, float)):
+            for u, v in zip(a, b):
+                if abs(u - v) > 1e-12 * max(1.0, abs(v)):
+                    fail(f"{path}: page {a} vs explain {b}")
+        elif a != b and not (a is None and b is None):
+            if isinstance(a, list):
+                for u, v in zip(a, b):
+                    close(u, v, path)
+            elif a != b:
+                fail(f"{path}: page {a!r} vs explain {b!r}")
+    close(shown, expected)
+    page_text = driver.find_element(By.ID, "inspector").text
+    for term in ("glass ball", "ka·Od·Ia", "kd·Od·max(0,N·L)", "kt·I_refracted"):
+        if term not in page_text:
+            fail(f"the inspector does not show {term!r}")
+    print(f"ok: the inspector at {target} shows prism explain's tree "
+          f"({len(shown['segments'])} rays drawn)")
+    driver.save_screenshot(os.path.join(SCREENS, "2-inspector.png"))
+    if README_SHOT:
+        driver.save_screenshot(README_SHOT)
+
+    # Move the glass ball: the picture follows the save.
+    text = open(SCENE).read()
+    moved = text.replace("center = [0.7, 1.0, 0.6]", "center = [-0.3, 1.0, 0.9]")
+    if moved == text:
+        fail("the scene has no glass ball centre to move")
+    before = canvas_rgb()
+    coarse_before = driver.execute_script("return window.prism.coarseAt;")
+    saved = time.time()
+    open(SCENE, "w").write(moved)
+    wait(f"window.prism.coarseAt !== {json.dumps(coarse_before)}", "the coarse picture", 10)
+    latency = time.time() - saved
+    generation = wait_done(generation)
+    after = canvas_rgb()
+    changed = sum(1 for a, b in zip(before, after) if a != b)
+    if changed < len(after) * 0.01:
+        fail(f"only {changed} channel values changed after moving the ball")
+    compare(after, reference("moved"), "after moving the ball")
+    print(f"ok: save to first coarse picture: {latency * 1000:.0f} ms")
+    driver.save_screenshot(os.path.join(SCREENS, "3-moved.png"))
+
+    # A broken save: the located error, the picture kept.
+    broken = moved.replace("radius = 0.8", 'radius = "big"')
+    open(SCENE, "w").write(broken)
+    wait("window.prism.phase === 'error'", "the error")
+    line = next(i + 1 for i, l in enumerate(broken.splitlines()) if 'radius = "big"' in l)
+    errors = driver.find_element(By.ID, "errors")
+    if not errors.is_displayed() or f"whitted.toml:{line}:" not in errors.text:
+        fail(f"the page does not show the error at line {line}: {errors.text!r}")
+    if canvas_rgb() != after:
+        fail("the picture changed while the scene was broken")
+    print(f"ok: the broken scene shows {errors.text.splitlines()[0]!r}; the picture stays")
+    driver.save_screenshot(os.path.join(SCREENS, "4-error.png"))
+
+    # Fixed: the picture returns and the error goes.
+    open(SCENE, "w").write(moved)
+    wait_done(driver.execute_script("return window.prism.generation;") - 1)
+    wait("document.getElementById('errors').hidden", "the error to go")
+    compare(canvas_rgb(), reference("fixed"), "after the fix")
+    driver.save_screenshot(os.path.join(SCREENS, "5-fixed.png"))
+finally:
+    driver.quit()
+    server.kill()
+print("ok: the preview passes in Chromium")
