@@ -3,6 +3,7 @@
 mod cli;
 mod farm;
 mod serve;
+mod tev;
 
 fn main() -> std::process::ExitCode {
     cli::run()

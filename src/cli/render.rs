@@ -18,6 +18,7 @@ use prism::render::{Checkpoint, Region, RenderError, render_region};
 use prism::{RenderObserver, RenderSettings, Scene, limits};
 
 use super::{BAD_INPUT, INTERRUPTED, LoadArgs, report_scene_error};
+use crate::tev::Tev;
 
 #[derive(Args)]
 #[command(after_help = limits::describe(), allow_negative_numbers = true)]
@@ -58,6 +59,10 @@ pub struct RenderArgs {
     /// false colour).
     #[arg(long, value_name = "NAME")]
     aov: Option<Aov>,
+    /// Stream the tiles to the tev image viewer listening at HOST:PORT
+    /// (tev's default port is 14158).
+    #[arg(long, value_name = "HOST:PORT")]
+    display_server: Option<String>,
     /// Print nothing but errors.
     #[arg(short, long)]
     quiet: bool,
@@ -151,7 +156,7 @@ pub fn frame_path(path: &Path, frame: u32) -> Option<PathBuf> {
 
 /// Progress on the bar or as log lines; checkpoint tiles; cancellation
 /// from Ctrl-C.
-struct CliObserver {
+struct CliObserver<'a> {
     bar: ProgressBar,
     /// Log lines `prism: progress ...` for batch logs (no terminal).
     log: Option<String>,
@@ -160,11 +165,15 @@ struct CliObserver {
     interrupted: Arc<AtomicBool>,
     checkpoint: Option<Checkpoint>,
     checkpoint_error: Mutex<Option<String>>,
+    tev: Option<&'a Tev>,
 }
 
-impl RenderObserver for CliObserver {
+impl RenderObserver for CliObserver<'_> {
     fn tile_done(&self, tile: Region, pixels: &[DVec3], pixels_done: u64) {
         self.bar.set_position(pixels_done);
+        if let Some(tev) = self.tev {
+            tev.update(tile, pixels);
+        }
         if let Some(c) = &self.checkpoint
             && let Err(e) = c.save(tile, pixels)
         {
@@ -280,6 +289,16 @@ pub fn render_command(args: &RenderArgs) -> ExitCode {
         Ok(r) => r,
         Err(e) => return bad(e),
     };
+    let tev = match &args.display_server {
+        None => None,
+        Some(address) => {
+            let name = args.output.display().to_string();
+            match Tev::connect(address, &name) {
+                Ok(t) => Some(t),
+                Err(e) => return bad(e),
+            }
+        }
+    };
     let interrupted = Arc::new(AtomicBool::new(false));
     // Whether an image is being written; the handler holds the lock while
     // it decides, so it never exits between the temporary file's creation
@@ -315,6 +334,7 @@ pub fn render_command(args: &RenderArgs) -> ExitCode {
             interrupted: &interrupted,
             writing: &writing,
             load_time,
+            tev: tev.as_ref(),
         };
         let code = job.run();
         if code != ExitCode::SUCCESS {
@@ -334,6 +354,7 @@ struct Job<'a> {
     interrupted: &'a Arc<AtomicBool>,
     writing: &'a Mutex<bool>,
     load_time: std::time::Duration,
+    tev: Option<&'a Tev>,
 }
 
 impl Job<'_> {
@@ -419,7 +440,11 @@ impl Job<'_> {
             interrupted: Arc::clone(self.interrupted),
             checkpoint,
             checkpoint_error: Mutex::new(None),
+            tev: self.tev,
         };
+        if let Some(tev) = self.tev {
+            tev.create(settings.width, settings.height);
+        }
         let rendered = match args.aov {
             Some(aov) => render_aov(self.scene, settings, region, aov, &observer).map(|mut o| {
                 let eight_bit = matches!(

@@ -48,6 +48,9 @@ pub struct ServeArgs {
     /// preview (and the scene's pictures) to the network.
     #[arg(long, default_value = "127.0.0.1")]
     bind: std::net::IpAddr,
+    /// Also stream the tiles to the tev image viewer at HOST:PORT.
+    #[arg(long, value_name = "HOST:PORT")]
+    display_server: Option<String>,
     #[command(flatten)]
     load: LoadArgs,
 }
@@ -106,7 +109,18 @@ async fn serve(args: &ServeArgs, options: prism::scene::LoadOptions) -> ExitCode
     if addr.ip().is_loopback() {
         hosts.push(format!("localhost:{}", addr.port()));
     }
-    let shared = Shared::new(args.scene.clone(), options);
+    let tev = match &args.display_server {
+        None => None,
+        Some(address) => match crate::tev::Tev::connect(address, &args.scene.display().to_string())
+        {
+            Ok(t) => Some(t),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::from(BAD_INPUT);
+            }
+        },
+    };
+    let shared = Shared::new(args.scene.clone(), options, tev);
     {
         let shared = Arc::clone(&shared);
         std::thread::spawn(move || worker::run(shared));

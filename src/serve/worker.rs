@@ -19,6 +19,8 @@ use prism::{RenderObserver, RenderSettings, Scene, SceneError};
 use serde::Serialize;
 use tokio::sync::broadcast;
 
+use crate::tev::Tev;
+
 /// A located problem in the scene, as the page shows it.
 #[derive(Clone, Debug, Serialize)]
 pub struct Problem {
@@ -93,11 +95,13 @@ pub struct Shared {
     pub scene: Mutex<Option<(Arc<Scene>, RenderSettings)>>,
     /// Events for the pages: (name, JSON).
     pub events: broadcast::Sender<(&'static str, Arc<String>)>,
+    /// The tev viewer the tiles also go to.
+    tev: Option<Tev>,
 }
 
 impl Shared {
     /// State for serving `scene_path`.
-    pub fn new(scene_path: PathBuf, options: LoadOptions) -> Arc<Shared> {
+    pub fn new(scene_path: PathBuf, options: LoadOptions, tev: Option<Tev>) -> Arc<Shared> {
         Arc::new(Shared {
             scene_path,
             options,
@@ -107,6 +111,7 @@ impl Shared {
             picture: Mutex::new(Picture::default()),
             scene: Mutex::new(None),
             events: broadcast::channel(4096).0,
+            tev,
         })
     }
 
@@ -163,6 +168,9 @@ struct PassObserver<'a> {
 
 impl RenderObserver for PassObserver<'_> {
     fn tile_done(&self, tile: Region, pixels: &[DVec3], pixels_done: u64) {
+        if let Some(tev) = &self.shared.tev {
+            tev.update(tile, pixels);
+        }
         {
             let mut picture = lock(&self.shared.picture);
             let width = picture.width as usize;
@@ -376,6 +384,9 @@ fn render_passes(
     } else {
         &[("final", 1)]
     };
+    if let Some(tev) = &shared.tev {
+        tev.create(width, height);
+    }
     for &(pass, spp) in passes {
         let start = Instant::now();
         shared.update(|s| {
