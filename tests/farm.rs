@@ -330,3 +330,32 @@ fn keyed_values_move_the_glass_ball() {
         "{err}"
     );
 }
+
+/// Parts that lie: a truncated file, garbage, a header whose region
+/// disagrees with its data window. Each is exit 2 naming the file.
+#[test]
+fn damaged_parts_are_refused_not_crashed_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene(d);
+    render(d, s, &["--tile", "0/2", "-o", "t0.exr"]);
+    render(d, s, &["--tile", "1/2", "-o", "t1.exr"]);
+    let good = std::fs::read(d.join("t1.exr")).unwrap();
+    std::fs::write(d.join("cut.exr"), &good[..good.len() / 2]).unwrap();
+    std::fs::write(d.join("junk.exr"), b"v/1\x01 not an exr at all").unwrap();
+    // The provenance claims another region than the data window.
+    let at = good.windows(7).position(|w| w == b"region=").unwrap();
+    let mut lying = good.clone();
+    lying[at + 7] = b'5';
+    std::fs::write(d.join("lying.exr"), &lying).unwrap();
+    for bad in ["cut.exr", "junk.exr", "lying.exr"] {
+        let o = prism(d, &["merge", "t0.exr", bad, "-o", "out.png"]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{bad}: {err}");
+        assert!(
+            err.contains(bad) && !err.contains("panicked"),
+            "{bad}: {err}"
+        );
+        assert!(!d.join("out.png").exists());
+    }
+}

@@ -154,7 +154,11 @@ pub struct Part {
 /// Reads an EXR written by [`write`] with a provenance. Messages say what
 /// is wrong without the path (the caller names the file).
 pub fn read_part(path: &Path) -> Result<Part, String> {
-    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| e.to_string())?;
+    // The decoder is not ours: a file it cannot handle must be an error,
+    // not a crash of the merge.
+    let meta = std::panic::catch_unwind(|| exr::meta::MetaData::read_from_file(path, false))
+        .map_err(|_| "the OpenEXR decoder failed on its header".to_string())?
+        .map_err(|e| e.to_string())?;
     let [header] = &meta.headers[..] else {
         return Err("not a single-part OpenEXR image written by prism".into());
     };
@@ -176,6 +180,9 @@ pub fn read_part(path: &Path) -> Result<Part, String> {
         && data.position == Vec2(region.x0 as i32, region.y0 as i32)
         && data.size == Vec2(region.width() as usize, region.height() as usize)
         && region.area() > 0
+        // No more pixels than a render may have: the pixels are allocated
+        // before the file's data is read.
+        && region.area() <= limits::MAX_PIXELS
         && Region::full(width as u32, height as u32).contains(&region);
     if !sane {
         return Err(format!(
@@ -184,8 +191,6 @@ pub fn read_part(path: &Path) -> Result<Part, String> {
         ));
     }
     let (width, height) = (width as u32, height as u32);
-    // The decoder is not ours: a file it cannot handle must be an error,
-    // not a crash of the merge.
     let row = region.width() as usize;
     let pixels = std::panic::catch_unwind(move || {
         read_first_rgba_layer_from_file(
