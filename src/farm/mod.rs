@@ -8,6 +8,15 @@
 //! they finish: written atomically, so a part that exists is whole),
 //! `logs/`, the job scripts, and the merged frames.
 
+/// `println!` that a reader who stops early (`| head`) does not turn into
+/// a panic.
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout().lock(), $($arg)*);
+    }};
+}
+
 mod openjd;
 mod slurm;
 

@@ -33,8 +33,8 @@ pub fn run(args: &FarmArgs) -> Result<(), Failure> {
         serde_json::to_string_pretty(&template).map_err(|e| Failure::Failed(e.to_string()))?;
     std::fs::write(&path, text + "\n")
         .map_err(|e| Failure::Failed(format!("{}: {e}", path.display())))?;
-    println!("wrote {}; to run it here:", path.display());
-    println!(
+    say!("wrote {}; to run it here:", path.display());
+    say!(
         "  openjd run {} --step Merge --run-dependencies -p Prism={} -p Scene={}",
         path.display(),
         prism.display(),

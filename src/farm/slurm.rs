@@ -51,22 +51,22 @@ pub fn run(args: &SlurmArgs) -> Result<(), Failure> {
         outdir.display()
     );
     if progress.missing_tasks.is_empty() && progress.mergeable.is_empty() {
-        println!(
+        say!(
             "{}: every frame is merged; nothing to submit",
             outdir.display()
         );
         return Ok(());
     }
     if !args.submit {
-        println!(
+        say!(
             "wrote {0}/render.sbatch and {0}/merge.sbatch; to submit:",
             outdir.display()
         );
         if progress.missing_tasks.is_empty() {
-            println!("  sbatch {}/merge.sbatch", outdir.display());
+            say!("  sbatch {}/merge.sbatch", outdir.display());
         } else {
-            println!("  id=$({render_cmd})");
-            println!(
+            say!("  id=$({render_cmd})");
+            say!(
                 "  sbatch --dependency=afterok:$id {}/merge.sbatch",
                 outdir.display()
             );
@@ -80,7 +80,7 @@ pub fn run(args: &SlurmArgs) -> Result<(), Failure> {
             outdir.join("render.sbatch").display().to_string(),
         ])?;
         record(&outdir, "render", &id)?;
-        println!(
+        say!(
             "submitted render job {id}: {} tasks ({array})",
             progress.missing_tasks.len()
         );
@@ -90,7 +90,7 @@ pub fn run(args: &SlurmArgs) -> Result<(), Failure> {
     merge_args.push(outdir.join("merge.sbatch").display().to_string());
     let id = sbatch(&merge_args)?;
     record(&outdir, "merge", &id)?;
-    println!("submitted merge job {id}");
+    say!("submitted merge job {id}");
     Ok(())
 }
 
