@@ -192,24 +192,9 @@ fn the_preview_streams_follows_saves_and_reports_errors() {
     // No file from disk.
     assert_eq!(get(addr, "/scene.toml", addr).0, 404);
 
-    // First render: a coarse picture, then tiles at 1 sample, then at 4.
+    // The first render (it may have finished before the stream opened).
     let mut events = Events::open(addr);
-    let (seen, done) = events.until("done");
-    if seen.iter().any(|(n, _)| n == "frame") {
-        let coarse = seen
-            .iter()
-            .position(|(n, t)| n == "frame" && t == "coarse")
-            .unwrap();
-        let preview = seen
-            .iter()
-            .position(|(n, t)| n == "tile" && t == "preview")
-            .unwrap();
-        let last = seen
-            .iter()
-            .rposition(|(n, t)| n == "tile" && t == "final")
-            .unwrap();
-        assert!(coarse < preview && preview < last, "{seen:?}");
-    }
+    let (_, done) = events.until("done");
     assert!(done["summary"].as_str().unwrap().contains("rays"));
     let reference = render_png(dir.path(), scene.to_str().unwrap());
     assert!(
@@ -220,9 +205,13 @@ fn the_preview_streams_follows_saves_and_reports_errors() {
     // A save: a new generation renders the moved ball.
     let moved = SCENE.replace("center = [0, 1, 0]", "center = [1, 1, 0]");
     std::fs::write(&scene, &moved).unwrap();
+    // A coarse picture, then tiles at 1 sample, then at 4, in that order.
     let (seen, done) = events.until("done");
+    let at = |name: &str, tag: &str| seen.iter().position(|(n, t)| n == name && t == tag);
+    let (coarse, preview) = (at("frame", "coarse"), at("tile", "preview"));
+    let last = seen.iter().rposition(|(n, t)| n == "tile" && t == "final");
     assert!(
-        seen.iter().any(|(n, t)| n == "frame" && t == "coarse"),
+        coarse.is_some() && coarse < preview && preview < last,
         "{seen:?}"
     );
     assert!(done["first_picture_s"].as_f64().unwrap() < 5.0);

@@ -360,21 +360,12 @@ struct Job<'a> {
 impl Job<'_> {
     fn run(&self) -> ExitCode {
         let (args, settings, region) = (self.args, &self.settings, self.region);
-        let aov_name = args
-            .aov
-            .and_then(|a| Aov::ALL.iter().find(|(_, v)| *v == a))
-            .map(|(n, _)| *n);
-        let provenance = Provenance {
-            scene_hash: self.scene.inventory.content_hash.clone(),
+        let mut provenance = Provenance::of(self.scene, settings);
+        if let Some(aov) = args.aov {
             // A debug view is another image: its parts never merge with
             // the picture's.
-            settings: match aov_name {
-                Some(name) => format!("{} aov={name}", settings.pixel_key()),
-                None => settings.pixel_key(),
-            },
-            seed: settings.seed,
-            frame: settings.frame,
-        };
+            provenance.settings = format!("{} aov={}", provenance.settings, aov.name());
+        }
         let checkpoint = match &args.checkpoint {
             None => None,
             Some(dir) => {
@@ -383,13 +374,7 @@ impl Job<'_> {
                 } else {
                     dir.clone()
                 };
-                let key: String = provenance
-                    .fields()
-                    .iter()
-                    .map(|(k, v)| format!("{k}={v}\n"))
-                    .chain([format!("region={region}\n")])
-                    .collect();
-                match Checkpoint::open(&dir, &key) {
+                match Checkpoint::open(&dir, &provenance.to_text(region)) {
                     Ok(c) => Some(c),
                     Err(e) => {
                         eprintln!("error: {e}");

@@ -37,6 +37,17 @@ pub struct Provenance {
 }
 
 impl Provenance {
+    /// What `settings` make of `scene`: its content hash, the pixel
+    /// settings, seed and frame.
+    pub fn of(scene: &crate::Scene, settings: &crate::RenderSettings) -> Provenance {
+        Provenance {
+            scene_hash: scene.inventory.content_hash.clone(),
+            settings: settings.pixel_key(),
+            seed: settings.seed,
+            frame: settings.frame,
+        }
+    }
+
     /// The fields as (name, value), in the order they are stored and
     /// compared.
     pub fn fields(&self) -> [(&'static str, String); 4] {
@@ -57,7 +68,9 @@ impl Provenance {
             .map(|(a, b)| (a.0, a.1, b.1))
     }
 
-    fn to_text(&self, region: Region) -> String {
+    /// The fields and `region`, one `name=value` line each: the EXR
+    /// attribute, and the key of a checkpoint.
+    pub fn to_text(&self, region: Region) -> String {
         let mut text: String = self
             .fields()
             .iter()

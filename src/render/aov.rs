@@ -53,6 +53,16 @@ impl Aov {
     ];
 }
 
+impl Aov {
+    /// The view's name on the command line.
+    pub fn name(self) -> &'static str {
+        Aov::ALL
+            .iter()
+            .find(|(_, a)| *a == self)
+            .map_or("", |(n, _)| n)
+    }
+}
+
 impl FromStr for Aov {
     type Err = String;
     fn from_str(s: &str) -> Result<Aov, String> {

@@ -17,6 +17,8 @@ use super::Region;
 
 /// First bytes of a tile file.
 const MAGIC: &[u8; 8] = b"PRISMTL1";
+/// Size of a tile file of the largest tile (see `encode`).
+const MAX_TILE_BYTES: u64 = 8 + 16 + (super::TILE as u64 * super::TILE as u64) * 24 + 32;
 /// The manifest's file name.
 const MANIFEST: &str = "checkpoint.txt";
 
@@ -72,7 +74,10 @@ impl Checkpoint {
         let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
         for entry in entries.flatten() {
             let path = entry.path();
-            if path.extension().is_some_and(|e| e == "tile") {
+            // No tile of a render is larger than this; a larger file is
+            // not ours and is not read into memory.
+            let fits = entry.metadata().is_ok_and(|m| m.len() <= MAX_TILE_BYTES);
+            if fits && path.extension().is_some_and(|e| e == "tile") {
                 // A damaged tile is traced again, not trusted.
                 if let Some((region, pixels)) = std::fs::read(&path).ok().and_then(|b| decode(&b)) {
                     saved.insert(region, pixels);

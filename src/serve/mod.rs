@@ -21,7 +21,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use axum::Router;
 use axum::extract::{Query, Request, State};
-use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::http::{HeaderValue, StatusCode, header};
 use axum::middleware::{self, Next};
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
@@ -270,12 +270,8 @@ fn save(app: &App, ext: &str, content_type: &'static str) -> Response {
         return (StatusCode::CONFLICT, "the render is not finished yet\n").into_response();
     };
     let scene = app.shared.scene.lock().ok().and_then(|s| s.clone());
-    let provenance = scene.map(|(scene, settings)| prism::image_io::Provenance {
-        scene_hash: scene.inventory.content_hash.clone(),
-        settings: settings.pixel_key(),
-        seed: settings.seed,
-        frame: settings.frame,
-    });
+    let provenance =
+        scene.map(|(scene, settings)| prism::image_io::Provenance::of(&scene, &settings));
     let written = tempfile::tempdir().and_then(|dir| {
         let path = dir.path().join(format!("render.{ext}"));
         prism::image_io::write_film_unless(
@@ -367,7 +363,7 @@ struct AovQuery {
 }
 
 /// A debug view of the last good scene, in false colour.
-async fn aov(State(app): State<App>, Query(q): Query<AovQuery>, _headers: HeaderMap) -> Response {
+async fn aov(State(app): State<App>, Query(q): Query<AovQuery>) -> Response {
     let aov: prism::render::aov::Aov = match q.name.parse() {
         Ok(a) => a,
         Err(e) => return (StatusCode::BAD_REQUEST, e).into_response(),
