@@ -359,3 +359,215 @@ fn damaged_parts_are_refused_not_crashed_on() {
         assert!(!d.join("out.png").exists());
     }
 }
+
+/// Every single-byte change of a part either makes it unreadable or leaves
+/// what it says unchanged: a damaged part never merges into another frame.
+#[test]
+fn a_flipped_byte_anywhere_in_a_part_is_caught() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene(d);
+    render(d, s, &["--crop", "40,41,30,31", "-o", "px.exr"]);
+    let good = std::fs::read(d.join("px.exr")).unwrap();
+    let original = prism::image_io::read_part(&d.join("px.exr")).unwrap();
+    let flipped = d.join("flipped.exr");
+    let mut accepted = 0;
+    for at in 0..good.len() {
+        let mut bytes = good.clone();
+        bytes[at] ^= 0x10;
+        std::fs::write(&flipped, &bytes).unwrap();
+        if let Ok(part) = prism::image_io::read_part(&flipped) {
+            accepted += 1;
+            assert_eq!(part.provenance, original.provenance, "byte {at}");
+            assert_eq!(part.film.region(), original.film.region(), "byte {at}");
+            assert_eq!(part.film.pixels(), original.film.pixels(), "byte {at}");
+        }
+    }
+    // Only bytes that carry nothing (unused header fields) may change.
+    assert!(
+        accepted < good.len() / 4,
+        "{accepted} of {} accepted",
+        good.len()
+    );
+}
+
+/// An EXR not written by prism, with a part's `prism` attribute copied in
+/// (its pixels NaN and infinite), and a part whose digest is right but
+/// whose radiance is negative: both refused, naming the file.
+#[test]
+fn foreign_and_impossible_pixels_are_refused() {
+    use exr::prelude::*;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene(d);
+    render(d, s, &["--crop", "0,2,0,1", "-o", "a.exr"]);
+    render(d, s, &["--crop", "2,96,0,1", "-o", "b.exr"]);
+    let meta = exr::meta::MetaData::read_from_file(d.join("a.exr"), false).unwrap();
+    let attribute = meta.headers[0].own_attributes.other[&Text::from("prism")].clone();
+    let mut attributes = LayerAttributes::default();
+    attributes.other.insert(Text::from("prism"), attribute);
+    let layer = Layer::new(
+        (2, 1),
+        attributes,
+        Encoding::SMALL_LOSSLESS,
+        SpecificChannels::rgb(|at: Vec2<usize>| {
+            if at.x() == 0 {
+                (f32::NAN, 0.0, 0.0)
+            } else {
+                (f32::INFINITY, 1.0, 1.0)
+            }
+        }),
+    );
+    let mut image = Image::from_layer(layer);
+    image.attributes.display_window = IntegerBounds::new((0, 0), (96, 70));
+    image.write().to_file(d.join("foreign.exr")).unwrap();
+    let o = prism(d, &["merge", "foreign.exr", "b.exr", "-o", "out.exr"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("foreign.exr") && err.contains("digest"),
+        "{err}"
+    );
+    assert!(!d.join("out.exr").exists());
+
+    let a = prism::image_io::read_part(&d.join("a.exr")).unwrap();
+    let mut film = prism::render::Film::window(96, 70, a.film.region());
+    film.set(1, 0, glam::DVec3::new(0.5, -1.0, 0.5));
+    let file = std::fs::File::create(d.join("negative.exr")).unwrap();
+    prism::image_io::exr::write(&film, Some(&a.provenance), std::io::BufWriter::new(file)).unwrap();
+    let o = prism(d, &["merge", "negative.exr", "b.exr", "-o", "out.exr"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("negative.exr: its pixel (1, 0)"), "{err}");
+}
+
+/// A small part whose header promises a 16384 × 16384 frame: refused from
+/// its header in an instant, under a 2 GB address-space limit, not after
+/// allocating gigabytes.
+#[test]
+fn a_lying_header_is_refused_before_allocating() {
+    use exr::prelude::*;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let text = format!(
+        "scene_sha256=0\nsettings=16384x16384 spp=1 max_depth=8 min_weight=0.001\nseed=0\n\
+         frame=0\nregion=0,16384,0,16384\npixels_sha256={}\n",
+        "0".repeat(64)
+    );
+    let mut attributes = LayerAttributes::default();
+    attributes.other.insert(
+        Text::from("prism"),
+        AttributeValue::Text(Text::from(text.as_str())),
+    );
+    let layer = Layer::new(
+        (1, 1),
+        attributes,
+        Encoding::SMALL_LOSSLESS,
+        SpecificChannels::rgb(|_: Vec2<usize>| (0.5f32, 0.5, 0.5)),
+    );
+    let mut image = Image::from_layer(layer);
+    image.attributes.display_window = IntegerBounds::new((0, 0), (16384, 16384));
+    let path = d.join("huge.exr");
+    image.write().to_file(&path).unwrap();
+    // Make the data window claim the whole frame.
+    let mut bytes = std::fs::read(&path).unwrap();
+    let at = bytes
+        .windows(17)
+        .position(|w| w == b"dataWindow\0box2i\0")
+        .unwrap()
+        + 17
+        + 4;
+    bytes[at + 8..at + 12].copy_from_slice(&16383i32.to_le_bytes());
+    bytes[at + 12..at + 16].copy_from_slice(&16383i32.to_le_bytes());
+    std::fs::write(&path, &bytes).unwrap();
+    let start = Instant::now();
+    let o = Command::new("prlimit")
+        .args(["--as=2000000000", "--"])
+        .arg(env!("CARGO_BIN_EXE_prism"))
+        .args(["merge", "huge.exr", "-o", "out.exr"])
+        .current_dir(d)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("huge.exr") && err.contains("promises"),
+        "{err}"
+    );
+    assert!(start.elapsed() < Duration::from_secs(30));
+}
+
+/// `prism merge a.exr b.exr -o a.exr` would destroy a part: refused, and
+/// the part is untouched.
+#[test]
+fn merge_onto_one_of_its_parts_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene(d);
+    render(d, s, &["--tile", "0/2", "-o", "t0.exr"]);
+    render(d, s, &["--tile", "1/2", "-o", "t1.exr"]);
+    let before = bytes(d, "t0.exr");
+    for out in ["t0.exr", "./t0.exr"] {
+        let o = prism(d, &["merge", "t0.exr", "t1.exr", "-o", out]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains("is one of the parts"), "{err}");
+        assert!(bytes(d, "t0.exr") == before);
+    }
+}
+
+/// A tile of another render (seed 1) copied into a seed-0 checkpoint is
+/// traced again: the resumed image equals the whole render.
+#[test]
+fn a_foreign_checkpoint_tile_is_traced_again() {
+    use prism::render::Checkpoint;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene(d);
+    let args = ["render", s, "--width", "64", "--height", "48", "--spp", "2"];
+    ok(d, &[&args[..], &["-q", "-o", "whole.png"]].concat());
+    // The render keys and pixels of seeds 0 and 1, from their parts.
+    let part_of = |seed: &str| {
+        let out = format!("seed{seed}.exr");
+        ok(
+            d,
+            &[&args[..], &["-q", "--seed", seed, "-o", &out]].concat(),
+        );
+        let part = prism::image_io::read_part(&d.join(out)).unwrap();
+        (part.provenance.to_text(part.film.region()), part.film)
+    };
+    let (key1, film1) = part_of("1");
+    let (key0, _) = part_of("0");
+    assert_ne!(key0, key1);
+    // Seed 1's checkpoint, every tile saved.
+    let ck1 = Checkpoint::open(&d.join("ck1"), &key1).unwrap();
+    for tile in film1.region().tiles(16) {
+        let pixels: Vec<glam::DVec3> = (tile.y0..tile.y1)
+            .flat_map(|y| (tile.x0..tile.x1).map(move |x| (x, y)))
+            .map(|(x, y)| film1.get(x, y))
+            .collect();
+        ck1.save(tile, &pixels).unwrap();
+    }
+    assert_eq!(
+        Checkpoint::open(&d.join("ck1"), &key1).unwrap().resumed(),
+        12
+    );
+    // Its tiles copied into a fresh seed-0 checkpoint.
+    drop(Checkpoint::open(&d.join("ck0"), &key0).unwrap());
+    for entry in std::fs::read_dir(d.join("ck1")).unwrap().flatten() {
+        if entry.path().extension().is_some_and(|e| e == "tile") {
+            std::fs::copy(entry.path(), d.join("ck0").join(entry.file_name())).unwrap();
+        }
+    }
+    let o = prism(
+        d,
+        &[&args[..], &["--checkpoint", "ck0", "-o", "out.png"]].concat(),
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(!err.contains("resuming"), "{err}");
+    assert!(
+        bytes(d, "whole.png") == bytes(d, "out.png"),
+        "a foreign tile was used"
+    );
+}

@@ -12,6 +12,7 @@ use exr::prelude::{
     Vec2, WritableImage, read_first_rgba_layer_from_file,
 };
 use glam::DVec3;
+use sha2::{Digest, Sha256};
 
 use super::to_f32;
 use crate::limits;
@@ -19,6 +20,14 @@ use crate::render::{Film, Region};
 
 /// Name of the EXR attribute holding a [`Provenance`].
 const ATTRIBUTE: &str = "prism";
+/// The attribute's last line: the SHA-256 of the lines before it and of
+/// the pixels as stored, so a damaged or doctored part is refused.
+const DIGEST_KEY: &str = "pixels_sha256=";
+/// The most a deflate stream (EXR's ZIP compression) can expand: 1032 to 1.
+/// A header promising more pixels than its file can hold is lying.
+const MAX_ZIP_RATIO: u64 = 1032;
+/// Bytes of one stored pixel: three f32.
+const STORED_PIXEL_BYTES: u64 = 12;
 
 /// What a render's pixels were made from: two parts whose provenance is
 /// equal belong to the same image.
@@ -131,9 +140,12 @@ pub fn write(
     if let Some(p) = provenance {
         // One attribute: the crate keeps custom attributes in a hash map,
         // whose order would change from run to run.
+        let mut text = p.to_text(region);
+        let digest = pixel_digest(&text, pixels.iter().copied());
+        text.push_str(&format!("{DIGEST_KEY}{digest}\n"));
         attributes.other.insert(
             Text::from(ATTRIBUTE),
-            AttributeValue::Text(Text::from(p.to_text(region).as_str())),
+            AttributeValue::Text(Text::from(text.as_str())),
         );
     }
     let layer = Layer::new(
@@ -155,6 +167,19 @@ pub fn write(
         .map_err(|e| e.to_string())
 }
 
+/// SHA-256, in hex, of `text` and then the pixels as an EXR part stores
+/// them (f32 RGB, little-endian, row by row).
+fn pixel_digest(text: &str, pixels: impl Iterator<Item = DVec3>) -> String {
+    let mut hash = Sha256::new();
+    hash.update(text.as_bytes());
+    for p in pixels {
+        for c in [p.x, p.y, p.z] {
+            hash.update(to_f32(c).to_le_bytes());
+        }
+    }
+    hash.finalize().iter().map(|b| format!("{b:02x}")).collect()
+}
+
 /// A part read back: its pixels (over its region of the frame) and what
 /// they were made from.
 pub struct Part {
@@ -165,8 +190,13 @@ pub struct Part {
 }
 
 /// Reads an EXR written by [`write`] with a provenance. Messages say what
-/// is wrong without the path (the caller names the file).
+/// is wrong without the path (the caller names the file). Before any pixel
+/// is allocated, the header's sizes are checked against the file's length
+/// (no more pixels than its compressed data can hold) and the memory is
+/// reserved fallibly; after decoding, the pixels must match the digest the
+/// writer stored and, for a picture, be finite and non-negative.
 pub fn read_part(path: &Path) -> Result<Part, String> {
+    let file_len = std::fs::metadata(path).map_err(|e| e.to_string())?.len();
     // The decoder is not ours: a file it cannot handle must be an error,
     // not a crash of the merge.
     let meta = std::panic::catch_unwind(|| exr::meta::MetaData::read_from_file(path, false))
@@ -183,7 +213,14 @@ pub fn read_part(path: &Path) -> Result<Part, String> {
             );
         }
     };
-    let (provenance, region) = Provenance::from_text(&text)?;
+    let (body, stored_digest) = split_digest(&text)?;
+    let (provenance, region) = Provenance::from_text(body)?;
+    if header.compression != Encoding::SMALL_LOSSLESS.compression {
+        return Err(format!(
+            "its compression is {:?}; prism writes ZIP (16 lines): not a part written by prism",
+            header.compression
+        ));
+    }
     let display = header.shared_attributes.display_window;
     let data = header.data_window();
     let (width, height) = (display.size.width(), display.size.height());
@@ -203,12 +240,35 @@ pub fn read_part(path: &Path) -> Result<Part, String> {
             data.position, data.size
         ));
     }
+    if region.area() * STORED_PIXEL_BYTES > file_len.saturating_mul(MAX_ZIP_RATIO) {
+        return Err(format!(
+            "its header promises {}x{} pixels, more than its {file_len} bytes can hold",
+            region.width(),
+            region.height()
+        ));
+    }
     let (width, height) = (width as u32, height as u32);
     let row = region.width() as usize;
+    let area = region.area() as usize;
+    let mut buffer: Vec<DVec3> = Vec::new();
+    buffer.try_reserve_exact(area).map_err(|_| {
+        format!(
+            "not enough memory for its {}x{} pixels",
+            region.width(),
+            region.height()
+        )
+    })?;
+    buffer.resize(area, DVec3::ZERO);
+    let buffer = std::sync::Mutex::new(Some(buffer));
     let pixels = std::panic::catch_unwind(move || {
         read_first_rgba_layer_from_file(
             path,
-            |size, _| vec![DVec3::ZERO; size.area()],
+            move |size, _| {
+                let reserved = buffer.lock().ok().and_then(|mut b| b.take());
+                reserved
+                    .filter(|b| b.len() == size.area())
+                    .unwrap_or_else(|| vec![DVec3::ZERO; size.area()])
+            },
             move |pixels: &mut Vec<DVec3>, at, (r, g, b, _a): (f32, f32, f32, f32)| {
                 pixels[at.y() * row + at.x()] = DVec3::new(r.into(), g.into(), b.into());
             },
@@ -219,7 +279,44 @@ pub fn read_part(path: &Path) -> Result<Part, String> {
     .layer_data
     .channel_data
     .pixels;
+    if pixel_digest(body, pixels.iter().copied()) != stored_digest {
+        return Err(
+            "its pixels do not match the digest stored with them: the file is damaged".into(),
+        );
+    }
+    // Debug views hold other quantities (normals are negative, a miss is
+    // infinitely deep); a picture holds radiance.
+    if !provenance.settings.contains(" aov=")
+        && let Some(i) = pixels
+            .iter()
+            .position(|p| !p.is_finite() || p.min_element() < 0.0)
+    {
+        let (x, y) = (region.x0 + (i % row) as u32, region.y0 + (i / row) as u32);
+        return Err(format!(
+            "its pixel ({x}, {y}) holds {:?}: radiance is finite and not negative",
+            pixels[i].to_array()
+        ));
+    }
     let mut film = Film::window(width, height, region);
     film.paste(region, &pixels);
     Ok(Part { film, provenance })
+}
+
+/// The attribute text split into the lines the digest covers and the
+/// digest (hex), which must be its last line.
+fn split_digest(text: &str) -> Result<(&str, &str), String> {
+    let missing = || {
+        "its `prism` attribute carries no pixel digest: not written by this version of \
+         prism; render the part again"
+            .to_string()
+    };
+    let (body, last) = match text.rsplit_once(DIGEST_KEY) {
+        Some((body, last)) if body.is_empty() || body.ends_with('\n') => (body, last),
+        _ => return Err(missing()),
+    };
+    let digest = last.strip_suffix('\n').unwrap_or(last);
+    if digest.len() != 64 || !digest.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return Err(missing());
+    }
+    Ok((body, digest))
 }

@@ -8,8 +8,10 @@
 //! the one rendered whole, in any format.
 
 pub mod exr;
+pub mod merge;
 
 pub use exr::{Part, Provenance, read_part};
+pub use merge::{MergeError, merge_parts, missing_regions};
 
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};

@@ -25,6 +25,9 @@ const MANIFEST: &str = "checkpoint.txt";
 /// A checkpoint folder opened for one render.
 pub struct Checkpoint {
     dir: PathBuf,
+    /// The render's key: every tile's digest covers it, so a tile of
+    /// another render is not taken.
+    key: String,
     saved: Mutex<HashMap<Region, Vec<DVec3>>>,
     resumed: usize,
 }
@@ -78,14 +81,19 @@ impl Checkpoint {
             // not ours and is not read into memory.
             let fits = entry.metadata().is_ok_and(|m| m.len() <= MAX_TILE_BYTES);
             if fits && path.extension().is_some_and(|e| e == "tile") {
-                // A damaged tile is traced again, not trusted.
-                if let Some((region, pixels)) = std::fs::read(&path).ok().and_then(|b| decode(&b)) {
+                // A damaged tile, one of another render, or one moved from
+                // its place is traced again, not trusted.
+                let decoded = std::fs::read(&path).ok().and_then(|b| decode(key, &b));
+                if let Some((region, pixels)) = decoded
+                    && path.file_name() == Some(tile_name(region).as_ref())
+                {
                     saved.insert(region, pixels);
                 }
             }
         }
         Ok(Checkpoint {
             dir: dir.to_path_buf(),
+            key: key.to_string(),
             resumed: saved.len(),
             saved: Mutex::new(saved),
         })
@@ -107,8 +115,8 @@ impl Checkpoint {
 
     /// Saves a finished tile.
     pub fn save(&self, tile: Region, pixels: &[DVec3]) -> Result<(), String> {
-        let path = self.dir.join(format!("{}-{}.tile", tile.x0, tile.y0));
-        write_atomically(&path, &encode(tile, pixels))
+        let path = self.dir.join(tile_name(tile));
+        write_atomically(&path, &encode(&self.key, tile, pixels))
             .map_err(|e| format!("{}: {e}", path.display()))
     }
 
@@ -126,6 +134,11 @@ impl Checkpoint {
     }
 }
 
+/// A tile's file name: its position in the frame.
+fn tile_name(tile: Region) -> String {
+    format!("{}-{}.tile", tile.x0, tile.y0)
+}
+
 /// Writes `bytes` to a temporary file beside `path` and renames it there.
 fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let dir = path.parent().unwrap_or(Path::new("."));
@@ -139,8 +152,8 @@ fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
 }
 
 /// Magic, the region (4 × u32), the pixels (f64 RGB), all little-endian,
-/// then the SHA-256 of everything before it.
-fn encode(tile: Region, pixels: &[DVec3]) -> Vec<u8> {
+/// then the SHA-256 of the render's key and everything before it.
+fn encode(key: &str, tile: Region, pixels: &[DVec3]) -> Vec<u8> {
     let mut bytes = Vec::with_capacity(8 + 16 + pixels.len() * 24 + 32);
     bytes.extend_from_slice(MAGIC);
     for v in [tile.x0, tile.x1, tile.y0, tile.y1] {
@@ -151,14 +164,23 @@ fn encode(tile: Region, pixels: &[DVec3]) -> Vec<u8> {
             bytes.extend_from_slice(&c.to_le_bytes());
         }
     }
-    let digest = Sha256::digest(&bytes);
+    let digest = keyed_digest(key, &bytes);
     bytes.extend_from_slice(&digest);
     bytes
 }
 
-fn decode(bytes: &[u8]) -> Option<(Region, Vec<DVec3>)> {
+fn keyed_digest(key: &str, body: &[u8]) -> [u8; 32] {
+    let mut hash = Sha256::new();
+    hash.update((key.len() as u64).to_le_bytes());
+    hash.update(key.as_bytes());
+    hash.update(body);
+    hash.finalize().into()
+}
+
+/// The tile in `bytes`, if it is whole and was saved for the render `key`.
+fn decode(key: &str, bytes: &[u8]) -> Option<(Region, Vec<DVec3>)> {
     let (body, digest) = bytes.split_at_checked(bytes.len().checked_sub(32)?)?;
-    if Sha256::digest(body).as_slice() != digest || !body.starts_with(MAGIC) {
+    if keyed_digest(key, body).as_slice() != digest || !body.starts_with(MAGIC) {
         return None;
     }
     let word =
@@ -201,14 +223,16 @@ mod tests {
         let pixels: Vec<DVec3> = (0..8)
             .map(|i| DVec3::new(i as f64, 0.1, -3.5e300))
             .collect();
-        let bytes = encode(tile, &pixels);
-        assert_eq!(decode(&bytes), Some((tile, pixels)));
+        let bytes = encode("k", tile, &pixels);
+        assert_eq!(decode("k", &bytes), Some((tile, pixels)));
+        // Another render's key: not taken.
+        assert_eq!(decode("k2", &bytes), None);
         for cut in [0, 10, bytes.len() - 1] {
-            assert_eq!(decode(&bytes[..cut]), None);
+            assert_eq!(decode("k", &bytes[..cut]), None);
         }
         let mut flipped = bytes.clone();
         flipped[40] ^= 1;
-        assert_eq!(decode(&flipped), None);
+        assert_eq!(decode("k", &flipped), None);
     }
 
     #[test]
@@ -231,6 +255,26 @@ mod tests {
             .err()
             .unwrap();
         assert!(e.contains("another render") && e.contains("scene=b"), "{e}");
+        // A tile of another render (same region, other key), and a tile
+        // moved to another tile's name, are traced again.
+        let other =
+            Checkpoint::open(&dir.path().join("other"), "scene=b\nregion=0,2,0,1\n").unwrap();
+        other.save(tile, &[DVec3::X, DVec3::X]).unwrap();
+        std::fs::copy(dir.path().join("other/0-0.tile"), at.join("0-0.tile")).unwrap();
+        assert_eq!(
+            Checkpoint::open(&at, "scene=a\nregion=0,2,0,1\n")
+                .unwrap()
+                .resumed(),
+            0
+        );
+        c.save(tile, &[DVec3::ONE, DVec3::X]).unwrap();
+        std::fs::rename(at.join("0-0.tile"), at.join("0-1.tile")).unwrap();
+        assert_eq!(
+            Checkpoint::open(&at, "scene=a\nregion=0,2,0,1\n")
+                .unwrap()
+                .resumed(),
+            0
+        );
         c.remove().unwrap();
         assert!(!at.exists());
         // A folder with other files in it is not taken over.
