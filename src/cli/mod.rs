@@ -75,6 +75,17 @@ pub struct LoadArgs {
     texture_memory: u64,
 }
 
+impl Default for LoadArgs {
+    /// What a scene reads with no options: its own folder and
+    /// PRISM_ALLOW_READ's.
+    fn default() -> Self {
+        LoadArgs {
+            allow_read: Vec::new(),
+            texture_memory: limits::DEFAULT_TEXTURE_MIB,
+        }
+    }
+}
+
 impl LoadArgs {
     /// The load options, or a message naming a folder that does not exist.
     pub fn options(&self) -> Result<LoadOptions, String> {

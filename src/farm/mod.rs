@@ -17,17 +17,21 @@ macro_rules! say {
     }};
 }
 
+mod merge;
 mod openjd;
 mod slurm;
 
+use std::collections::HashSet;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Args, Subcommand};
+use prism::Scene;
+use prism::render::Region;
 use serde::{Deserialize, Serialize};
 
-use crate::cli::{BAD_INPUT, parse_frames};
+use crate::cli::{BAD_INPUT, LoadArgs, parse_frames};
 
 #[derive(Subcommand)]
 pub enum FarmCommand {
@@ -40,10 +44,20 @@ pub enum FarmCommand {
     /// AWS Deadline Cloud.
     Openjd(FarmArgs),
     /// Show which frames and parts of a farm render are done and which are
-    /// missing.
+    /// missing, and why a merge failed.
     Status {
         /// The output folder of `prism farm slurm`.
         outdir: PathBuf,
+    },
+    /// Merge every frame of a farm render whose parts are all there, each
+    /// on its own (what the merge job runs). A part the merge refuses is
+    /// set aside in parts/refused/, so that a rerun renders it again.
+    Merge {
+        /// The output folder of `prism farm slurm`.
+        outdir: PathBuf,
+        /// Only this frame.
+        #[arg(long, value_name = "F")]
+        frame: Option<u32>,
     },
 }
 
@@ -57,13 +71,13 @@ pub struct FarmArgs {
     #[arg(short, long)]
     output: PathBuf,
     /// Parts per frame (bands of rows, as `prism render --tile I/N`).
-    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=MAX_TILES as i64))]
     tiles: u32,
     /// Frames A to B (inclusive).
     #[arg(long, value_name = "A-B", default_value = "0", value_parser = parse_frames)]
     frames: (u32, u32),
     /// Format of the merged frames: exr, png, ppm or hdr.
-    #[arg(long, default_value = "exr", value_parser = ["exr", "png", "ppm", "hdr"])]
+    #[arg(long, default_value = "exr", value_parser = FORMATS)]
     format: String,
 }
 
@@ -74,7 +88,8 @@ pub struct SlurmArgs {
     /// At most K tasks of the array run at once.
     #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..))]
     max_running: Option<u32>,
-    /// Slurm partition.
+    /// Slurm partition (letters, digits, `_`, `.`, `-`; several separated
+    /// by `,`).
     #[arg(long, value_name = "P")]
     partition: Option<String>,
     /// CPUs per task (each task renders on that many threads).
@@ -84,6 +99,16 @@ pub struct SlurmArgs {
     #[arg(long)]
     submit: bool,
 }
+
+/// Formats of the merged frames.
+const FORMATS: [&str; 4] = ["exr", "png", "ppm", "hdr"];
+/// Most parts per frame.
+pub const MAX_TILES: u32 = 100_000;
+/// Most tasks (frames × tiles) in one farm render. Slurm allows at most
+/// MaxArraySize − 1 as an array index (1001 by default, 4,000,001 at
+/// most); `prism farm slurm` also checks the cluster's own value. A plan
+/// this large is still read and reported on in seconds.
+pub const MAX_TASKS: u64 = 1_000_000;
 
 /// What to render, as saved in `farm.toml`; a later run must ask for the
 /// same, or use another folder.
@@ -104,10 +129,11 @@ pub struct Plan {
 impl Plan {
     /// Number of (frame, tile) tasks.
     pub fn task_count(&self) -> u64 {
-        u64::from(self.last_frame - self.first_frame + 1) * u64::from(self.tiles)
+        (u64::from(self.last_frame) - u64::from(self.first_frame) + 1) * u64::from(self.tiles)
     }
 
     /// Task `k`'s (frame, tile); the job scripts compute the same.
+    #[cfg(test)]
     pub fn task(&self, k: u64) -> (u32, u32) {
         let tiles = u64::from(self.tiles);
         (self.first_frame + (k / tiles) as u32, (k % tiles) as u32)
@@ -115,7 +141,11 @@ impl Plan {
 
     /// The part of `frame`'s tile `tile`, relative to the output folder.
     pub fn part(frame: u32, tile: u32) -> String {
-        format!("parts/frame_{frame:04}_tile_{tile:04}.exr")
+        format!("parts/{}", Plan::part_name(frame, tile))
+    }
+
+    fn part_name(frame: u32, tile: u32) -> String {
+        format!("frame_{frame:04}_tile_{tile:04}.exr")
     }
 
     /// The merged frame, relative to the output folder.
@@ -123,15 +153,89 @@ impl Plan {
         format!("frame_{frame:04}.{}", self.format)
     }
 
+    /// Why `frame`'s last merge failed, relative to the output folder.
+    fn failure_file(frame: u32) -> String {
+        format!("failed/frame_{frame:04}.txt")
+    }
+
     fn frames(&self) -> std::ops::RangeInclusive<u32> {
         self.first_frame..=self.last_frame
     }
+
+    /// The plan's own consistency, whether typed or read from a
+    /// hand-edited `farm.toml`: a reversed range or a plan beyond the task
+    /// limit is refused at once rather than enumerated.
+    fn check(&self) -> Result<(), String> {
+        if self.first_frame > self.last_frame {
+            return Err(format!(
+                "frames {}-{} are reversed",
+                self.first_frame, self.last_frame
+            ));
+        }
+        if !(1..=MAX_TILES).contains(&self.tiles) {
+            return Err(format!(
+                "{} tiles per frame: between 1 and {MAX_TILES} are allowed",
+                self.tiles
+            ));
+        }
+        if self.task_count() > MAX_TASKS {
+            return Err(format!(
+                "{} frames x {} tiles is {} tasks; a farm render may have at most {MAX_TASKS} \
+                 (fewer tiles, or several renders of fewer frames)",
+                u64::from(self.last_frame) - u64::from(self.first_frame) + 1,
+                self.tiles,
+                self.task_count()
+            ));
+        }
+        if !FORMATS.contains(&self.format.as_str()) {
+            return Err(format!(
+                "format `{}`: expected one of {}",
+                self.format,
+                FORMATS.join(", ")
+            ));
+        }
+        if !self.scene.is_absolute() {
+            return Err(format!(
+                "scene {}: expected an absolute path",
+                self.scene.display()
+            ));
+        }
+        Ok(())
+    }
+
+    /// Reads and checks the plan in `outdir`.
+    fn read(outdir: &Path) -> Result<Plan, Failure> {
+        let path = outdir.join(PLAN);
+        let text = std::fs::read_to_string(&path).map_err(|e| {
+            Failure::BadInput(format!(
+                "{}: {e}; expected the output folder of `prism farm`",
+                path.display()
+            ))
+        })?;
+        let plan: Plan = toml::from_str(&text)
+            .map_err(|e| Failure::BadInput(format!("{}: not a farm plan: {e}", path.display())))?;
+        plan.check()
+            .map_err(|e| Failure::BadInput(format!("{}: {e}", path.display())))?;
+        Ok(plan)
+    }
+}
+
+/// How far one frame of a farm render is.
+pub struct FrameProgress {
+    /// The frame.
+    pub frame: u32,
+    /// Whether its merged image exists.
+    pub merged: bool,
+    /// Its tiles whose part is missing.
+    pub missing: Vec<u32>,
+    /// Why its last merge failed, if it did and it is not merged since.
+    pub failure: Option<String>,
 }
 
 /// Where a farm render stands, from the files in its folder.
 pub struct Progress {
-    /// Frames merged.
-    pub merged: Vec<u32>,
+    /// Every frame of the plan, in order.
+    pub frames: Vec<FrameProgress>,
     /// Tasks whose part is missing and whose frame is not merged.
     pub missing_tasks: Vec<u64>,
     /// Frames with every part but no merged image.
@@ -139,24 +243,50 @@ pub struct Progress {
 }
 
 impl Progress {
+    /// One listing of each folder, not a look-up per file, so a plan of
+    /// [`MAX_TASKS`] is read in a moment.
     fn of(plan: &Plan, outdir: &Path) -> Progress {
-        let merged: Vec<u32> = plan
-            .frames()
-            .filter(|&f| outdir.join(plan.frame_file(f)).is_file())
-            .collect();
-        let missing_tasks: Vec<u64> = (0..plan.task_count())
-            .filter(|&k| {
-                let (frame, tile) = plan.task(k);
-                !merged.contains(&frame) && !outdir.join(Plan::part(frame, tile)).is_file()
-            })
-            .collect();
-        let mergeable = plan
-            .frames()
-            .filter(|f| !merged.contains(f))
-            .filter(|&f| (0..plan.tiles).all(|t| outdir.join(Plan::part(f, t)).is_file()))
-            .collect();
+        let names = |dir: &Path| -> HashSet<String> {
+            std::fs::read_dir(dir)
+                .map(|d| {
+                    d.flatten()
+                        .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
+                        .filter_map(|e| e.file_name().into_string().ok())
+                        .collect()
+                })
+                .unwrap_or_default()
+        };
+        let top = names(outdir);
+        let parts = names(&outdir.join("parts"));
+        let mut frames = Vec::new();
+        let mut missing_tasks = Vec::new();
+        let mut mergeable = Vec::new();
+        for (i, frame) in plan.frames().enumerate() {
+            let merged = top.contains(&plan.frame_file(frame));
+            let missing: Vec<u32> = (0..plan.tiles)
+                .filter(|&t| !parts.contains(&Plan::part_name(frame, t)))
+                .collect();
+            if !merged {
+                let first_task = i as u64 * u64::from(plan.tiles);
+                missing_tasks.extend(missing.iter().map(|&t| first_task + u64::from(t)));
+                if missing.is_empty() {
+                    mergeable.push(frame);
+                }
+            }
+            let failure = if merged {
+                None
+            } else {
+                std::fs::read_to_string(outdir.join(Plan::failure_file(frame))).ok()
+            };
+            frames.push(FrameProgress {
+                frame,
+                merged,
+                missing,
+                failure,
+            });
+        }
         Progress {
-            merged,
+            frames,
             missing_tasks,
             mergeable,
         }
@@ -168,6 +298,7 @@ pub fn run(command: FarmCommand) -> ExitCode {
         FarmCommand::Slurm(args) => slurm::run(&args),
         FarmCommand::Openjd(args) => openjd::run(&args),
         FarmCommand::Status { outdir } => status(&outdir),
+        FarmCommand::Merge { outdir, frame } => merge::run(&outdir, frame),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -192,14 +323,82 @@ pub enum Failure {
 
 const PLAN: &str = "farm.toml";
 
-/// The plan for `args` in its output folder: created on the first run,
-/// and on later runs checked to be the same.
-fn plan_in(args: &FarmArgs) -> Result<Plan, Failure> {
+/// `path` as text a job script can carry: valid UTF-8 and no control
+/// characters (a newline would end a line of the script or the job
+/// description). Everything else is quoted where it is used.
+fn carriable<'a>(path: &'a Path, what: &str, backend: &str) -> Result<&'a str, Failure> {
+    let text = path.to_str().ok_or_else(|| {
+        Failure::BadInput(format!(
+            "{what} {}: is not valid UTF-8, which {backend} cannot carry; rename it",
+            path.display()
+        ))
+    })?;
+    if let Some(c) = text.chars().find(|c| c.is_control()) {
+        let name = match c {
+            '\n' => "a newline".to_string(),
+            '\r' => "a carriage return".to_string(),
+            '\t' => "a tab".to_string(),
+            c => format!("the control character U+{:04X}", u32::from(c)),
+        };
+        return Err(Failure::BadInput(format!(
+            "{what} {text:?}: contains {name}, which {backend} cannot carry; rename it"
+        )));
+    }
+    Ok(text)
+}
+
+/// `s` as one word for a POSIX shell: as is when it holds nothing the
+/// shell would interpret, else in single quotes.
+pub fn shell_word(s: &str) -> String {
+    let plain = !s.is_empty()
+        && s.bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b"/._-+,:=@".contains(&b));
+    if plain {
+        s.to_string()
+    } else {
+        format!("'{}'", s.replace('\'', r"'\''"))
+    }
+}
+
+/// The folders and paths a job script names, checked for `backend`.
+struct Paths {
+    outdir: PathBuf,
+    scene: PathBuf,
+    prism: PathBuf,
+}
+
+impl Paths {
+    fn outdir(&self) -> &str {
+        self.outdir.to_str().unwrap_or_default()
+    }
+
+    fn scene(&self) -> &str {
+        self.scene.to_str().unwrap_or_default()
+    }
+
+    fn prism(&self) -> &str {
+        self.prism.to_str().unwrap_or_default()
+    }
+}
+
+/// Checks everything a farm render needs before anything is written: the
+/// paths (for `backend`), the scene (loaded as a task will load it), the
+/// tiles against the image height, the frames against the animation, the
+/// task limit, the merged frames' format. Then creates the output folder
+/// and its plan (or checks that an earlier run planned the same).
+fn plan_in(args: &FarmArgs, backend: &str) -> Result<(Plan, Paths), Failure> {
     let bad = Failure::BadInput;
+    carriable(&args.scene, "the scene", backend)?;
+    carriable(&args.output, "the output folder", backend)?;
     let scene = args
         .scene
         .canonicalize()
         .map_err(|e| bad(format!("{}: {e}", args.scene.display())))?;
+    carriable(&scene, "the scene", backend)?;
+    let prism = std::env::current_exe()
+        .and_then(|p| p.canonicalize())
+        .map_err(|e| Failure::Failed(format!("cannot find the prism executable: {e}")))?;
+    carriable(&prism, "the prism executable", backend)?;
     let plan = Plan {
         scene,
         tiles: args.tiles,
@@ -207,53 +406,100 @@ fn plan_in(args: &FarmArgs) -> Result<Plan, Failure> {
         last_frame: args.frames.1,
         format: args.format.clone(),
     };
+    plan.check().map_err(bad)?;
+    check_scene(&plan)?;
+
     let outdir = &args.output;
     for sub in ["", "parts", "logs"] {
         std::fs::create_dir_all(outdir.join(sub))
             .map_err(|e| bad(format!("{}: {e}", outdir.join(sub).display())))?;
     }
+    let outdir = outdir
+        .canonicalize()
+        .map_err(|e| Failure::Failed(format!("{}: {e}", outdir.display())))?;
+    carriable(&outdir, "the output folder", backend)?;
+    prism::image_io::check_writable(&outdir.join(plan.frame_file(plan.first_frame)))
+        .map_err(|e| bad(e.to_string()))?;
     let path = outdir.join(PLAN);
-    match std::fs::read_to_string(&path) {
-        Ok(text) => {
-            let old: Plan = toml::from_str(&text)
-                .map_err(|e| bad(format!("{}: not a farm plan: {e}", path.display())))?;
-            if old != plan {
-                return Err(bad(format!(
-                    "{}: holds another farm render ({} tiles, frames {}-{}, scene {}); \
-                     use another folder",
-                    outdir.display(),
-                    old.tiles,
-                    old.first_frame,
-                    old.last_frame,
-                    old.scene.display()
-                )));
-            }
+    if path.exists() {
+        let old = Plan::read(&outdir)?;
+        if old != plan {
+            return Err(bad(format!(
+                "{}: holds another farm render ({} tiles, frames {}-{}, scene {}); \
+                 use another folder",
+                outdir.display(),
+                old.tiles,
+                old.first_frame,
+                old.last_frame,
+                old.scene.display()
+            )));
         }
-        Err(_) => {
-            let text = toml::to_string(&plan).map_err(|e| Failure::Failed(e.to_string()))?;
-            std::fs::write(&path, text)
-                .map_err(|e| Failure::Failed(format!("{}: {e}", path.display())))?;
+    } else {
+        let text = toml::to_string(&plan).map_err(|e| Failure::Failed(e.to_string()))?;
+        write_file(&path, &text)?;
+    }
+    Ok((
+        plan.clone(),
+        Paths {
+            outdir,
+            scene: plan.scene.clone(),
+            prism,
+        },
+    ))
+}
+
+/// Loads the scene at the plan's first and last frame, as the tasks will,
+/// and checks the work fits it: the scene's errors (with their lines), its
+/// render settings, a tile count the image height allows, frames inside
+/// its animation.
+fn check_scene(plan: &Plan) -> Result<(), Failure> {
+    let options = LoadArgs::default().options().map_err(Failure::BadInput)?;
+    for frame in [plan.first_frame, plan.last_frame] {
+        let scene = Scene::load_with(
+            &plan.scene,
+            &prism::scene::LoadOptions {
+                frame,
+                ..options.clone()
+            },
+        )
+        .map_err(|e| Failure::BadInput(e.to_string()))?;
+        let settings = scene.settings;
+        settings.check().map_err(Failure::BadInput)?;
+        Region::tile(0, plan.tiles, settings.width, settings.height)
+            .map_err(|e| Failure::BadInput(format!("--tiles {}: {e}", plan.tiles)))?;
+        if let Some(animation) = scene.animation
+            && plan.last_frame >= animation.frames
+        {
+            return Err(Failure::BadInput(format!(
+                "frame {} is past the animation's last frame {} ([animation] frames = {} in {})",
+                plan.last_frame,
+                animation.frames - 1,
+                animation.frames,
+                plan.scene.display()
+            )));
+        }
+        if !scene.animated {
+            break;
         }
     }
-    Ok(plan)
+    Ok(())
+}
+
+/// Writes `text` to `path` through a temporary file renamed into place.
+fn write_file(path: &Path, text: &str) -> Result<(), Failure> {
+    let failed = |e: std::io::Error| Failure::Failed(format!("{}: {e}", path.display()));
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let mut temp = tempfile::NamedTempFile::new_in(dir).map_err(failed)?;
+    temp.write_all(text.as_bytes()).map_err(failed)?;
+    temp.persist(path).map_err(|e| failed(e.error))?;
+    Ok(())
 }
 
 fn status(outdir: &Path) -> Result<(), Failure> {
-    let path = outdir.join(PLAN);
-    let text = std::fs::read_to_string(&path).map_err(|e| {
-        Failure::BadInput(format!(
-            "{}: {e}; expected the output folder of `prism farm slurm`",
-            path.display()
-        ))
-    })?;
-    let plan: Plan = toml::from_str(&text)
-        .map_err(|e| Failure::BadInput(format!("{}: not a farm plan: {e}", path.display())))?;
+    let plan = Plan::read(outdir)?;
     let progress = Progress::of(&plan, outdir);
-    // A reader that stops early (`| head`) is not an error.
-    let mut out = std::io::stdout().lock();
-    let frames = plan.last_frame - plan.first_frame + 1;
-    let _ = writeln!(
-        out,
+    let merged = progress.frames.iter().filter(|f| f.merged).count();
+    say!(
         "{}: frames {}-{}, {} tiles each ({} tasks); scene {}",
         outdir.display(),
         plan.first_frame,
@@ -262,28 +508,24 @@ fn status(outdir: &Path) -> Result<(), Failure> {
         plan.task_count(),
         plan.scene.display()
     );
-    let _ = writeln!(
-        out,
-        "merged: {} of {frames} frames; parts missing: {}",
-        progress.merged.len(),
+    say!(
+        "merged: {merged} of {} frames; parts missing: {}",
+        progress.frames.len(),
         progress.missing_tasks.len()
     );
-    for f in plan.frames() {
-        let done = (0..plan.tiles)
-            .filter(|&t| outdir.join(Plan::part(f, t)).is_file())
-            .count();
-        let state = if progress.merged.contains(&f) {
+    for f in &progress.frames {
+        let done = plan.tiles as usize - f.missing.len();
+        let state = if f.merged {
             "merged".to_string()
-        } else if progress.mergeable.contains(&f) {
+        } else if let Some(why) = &f.failure {
+            format!("merge failed: {}", why.trim())
+        } else if f.missing.is_empty() {
             "all parts done, not merged".to_string()
         } else {
-            let missing: Vec<String> = (0..plan.tiles)
-                .filter(|&t| !outdir.join(Plan::part(f, t)).is_file())
-                .map(|t| t.to_string())
-                .collect();
+            let missing: Vec<String> = f.missing.iter().map(u32::to_string).collect();
             format!("missing tiles {}", missing.join(","))
         };
-        let _ = writeln!(out, "frame {f}: {done}/{} parts; {state}", plan.tiles);
+        say!("frame {}: {done}/{} parts; {state}", f.frame, plan.tiles);
     }
     Ok(())
 }
@@ -301,9 +543,44 @@ mod tests {
             last_frame: 6,
             format: "png".into(),
         };
+        assert!(plan.check().is_ok());
         let tasks: Vec<(u32, u32)> = (0..plan.task_count()).map(|k| plan.task(k)).collect();
         assert_eq!(tasks, [(5, 0), (5, 1), (5, 2), (6, 0), (6, 1), (6, 2)]);
         assert_eq!(Plan::part(5, 2), "parts/frame_0005_tile_0002.exr");
         assert_eq!(plan.frame_file(6), "frame_0006.png");
+    }
+
+    #[test]
+    fn plans_beyond_the_limits_are_refused_at_once() {
+        let plan = Plan {
+            scene: PathBuf::from("/s.toml"),
+            tiles: 100_000,
+            first_frame: 0,
+            last_frame: u32::MAX,
+            format: "exr".into(),
+        };
+        assert!(plan.check().unwrap_err().contains("at most 1000000"));
+        let reversed = Plan {
+            first_frame: 5,
+            last_frame: 4,
+            tiles: 1,
+            ..plan.clone()
+        };
+        assert!(reversed.check().unwrap_err().contains("reversed"));
+        let relative = Plan {
+            scene: PathBuf::from("s.toml"),
+            last_frame: 0,
+            tiles: 1,
+            ..plan
+        };
+        assert!(relative.check().is_err());
+    }
+
+    #[test]
+    fn shell_words_are_quoted_when_needed() {
+        assert_eq!(shell_word("/a/b-c_d.toml"), "/a/b-c_d.toml");
+        assert_eq!(shell_word("a b"), "'a b'");
+        assert_eq!(shell_word("it's $(x)"), r"'it'''s $(x)'");
+        assert_eq!(shell_word(""), "''");
     }
 }

@@ -3,42 +3,41 @@
 //! over the task parameters Frame and Tile, each task one
 //! `prism render --frame F --tile T/N`, and a `Merge` step over Frame that
 //! depends on it.
+//!
+//! Paths are not written into the template: they are the job's PATH
+//! parameters, passed to each task in its environment and quoted wherever
+//! the task's shell line uses them.
 
 use std::path::Path;
 
 use serde_json::json;
 
-use super::{Failure, FarmArgs, plan_in};
+use super::{Failure, FarmArgs, plan_in, shell_word, write_file};
+
+const BACKEND: &str = "the Open Job Description backend";
 
 /// The template's file name in the output folder.
 const TEMPLATE: &str = "job.template.json";
 
 pub fn run(args: &FarmArgs) -> Result<(), Failure> {
-    let plan = plan_in(args)?;
-    let outdir = args
-        .output
-        .canonicalize()
-        .map_err(|e| Failure::Failed(format!("{}: {e}", args.output.display())))?;
-    let prism = std::env::current_exe()
-        .and_then(|p| p.canonicalize())
-        .map_err(|e| Failure::Failed(format!("cannot find the prism executable: {e}")))?;
+    let (plan, paths) = plan_in(args, BACKEND)?;
     let template = template(
         &plan.scene,
         plan.tiles,
         (plan.first_frame, plan.last_frame),
         &plan.format,
     );
-    let path = outdir.join(TEMPLATE);
+    let path = paths.outdir.join(TEMPLATE);
     let text =
         serde_json::to_string_pretty(&template).map_err(|e| Failure::Failed(e.to_string()))?;
-    std::fs::write(&path, text + "\n")
-        .map_err(|e| Failure::Failed(format!("{}: {e}", path.display())))?;
+    write_file(&path, &(text + "\n"))?;
     say!("wrote {}; to run it here:", path.display());
     say!(
-        "  openjd run {} --step Merge --run-dependencies -p Prism={} -p Scene={}",
-        path.display(),
-        prism.display(),
-        plan.scene.display()
+        "  openjd run {} --step Merge --run-dependencies -p {} -p {} -p {}",
+        shell_word(path.to_str().unwrap_or_default()),
+        shell_word(&format!("Prism={}", paths.prism())),
+        shell_word(&format!("Scene={}", paths.scene())),
+        shell_word(&format!("OutputDir={}", paths.outdir())),
     );
     Ok(())
 }
@@ -52,10 +51,12 @@ fn template(scene: &Path, tiles: u32, frames: (u32, u32), format: &str) -> serde
         "set -eu; mkdir -p \"$OUT/parts\"; exec \"$PRISM\" render \"$SCENE\" --frame \"$FRAME\" \
          --tile \"$TILE/{tiles}\" -o \"{part}\""
     );
+    // The part paths as the positional parameters: each one word, whatever
+    // the folder's name holds.
     let merge = format!(
-        "set -eu; parts=''; for TILE in $(seq 0 {last_tile}); do parts=\"$parts {part}\"; done; \
-         exec \"$PRISM\" merge $parts -o \"$(printf '%s/frame_%04d.{format}' \"$OUT\" \"$FRAME\")\"",
-        last_tile = tiles - 1,
+        "set -eu; set --; TILE=0; while [ \"$TILE\" -lt {tiles} ]; do set -- \"$@\" \"{part}\"; \
+         TILE=$((TILE + 1)); done; \
+         exec \"$PRISM\" merge \"$@\" -o \"$(printf '%s/frame_%04d.{format}' \"$OUT\" \"$FRAME\")\"",
     );
     // Each task runs one shell line with its values in the environment.
     let action = |line: &str, tile: bool| {

@@ -1,55 +1,65 @@
 //! Slurm: the plan as two batch scripts, `render.sbatch` (a job array,
 //! task k rendering part k % tiles of frame first + k / tiles) and
-//! `merge.sbatch` (merges every frame whose parts are all there), and
-//! their submission with `sbatch`, the merge after the array
-//! (`--dependency=afterok`).
+//! `merge.sbatch` (`prism farm merge`: every frame whose parts are all
+//! there, each on its own), and their submission with `sbatch`, the merge
+//! after the array (`--dependency=afterany`).
+//!
+//! No value from the user reaches a shell or Slurm unquoted: paths appear
+//! only in the script bodies, in single quotes; the `#SBATCH` lines hold
+//! only fixed text and checked numbers and names; the log paths are given
+//! to `sbatch` as arguments (run without a shell), with every `%` of the
+//! folder's name doubled, since Slurm expands its `%` patterns in the
+//! whole path. A backslash, which turns those patterns off, is refused.
 
 use std::fmt::Write as _;
 use std::path::Path;
 use std::process::Command;
 
-use super::{Failure, Plan, Progress, SlurmArgs, plan_in};
+use super::{Failure, Paths, Plan, Progress, SlurmArgs, plan_in, shell_word, write_file};
 
 /// Submitted job IDs, one `render ID` or `merge ID` line each.
 const JOBS: &str = "jobs.txt";
+const BACKEND: &str = "the Slurm backend";
 
 pub fn run(args: &SlurmArgs) -> Result<(), Failure> {
-    let plan = plan_in(&args.common)?;
-    let outdir = args
-        .common
-        .output
-        .canonicalize()
-        .map_err(|e| Failure::Failed(format!("{}: {e}", args.common.output.display())))?;
-    let prism = std::env::current_exe()
-        .and_then(|p| p.canonicalize())
-        .map_err(|e| Failure::Failed(format!("cannot find the prism executable: {e}")))?;
-    let write = |name: &str, text: String| {
-        let path = outdir.join(name);
-        std::fs::write(&path, text).map_err(|e| Failure::Failed(format!("{}: {e}", path.display())))
-    };
-    write("render.sbatch", render_script(&plan, &outdir, &prism, args))?;
-    write("merge.sbatch", merge_script(&plan, &outdir, &prism, args))?;
-
+    if let Some(p) = &args.partition {
+        check_partition(p)?;
+    }
+    check_log_folder(&args.common.output)?;
+    let (plan, paths) = plan_in(&args.common, BACKEND)?;
+    check_log_folder(&paths.outdir)?;
+    let outdir = paths.outdir.clone();
+    // Check first, act after: nothing is cancelled, written or submitted
+    // unless all of it can be.
+    let progress = Progress::of(&plan, &outdir);
     if args.submit {
-        // A merge still waiting on an array that lost a task would wait for
-        // ever: it is replaced by the one submitted now.
-        cancel_waiting_merges(&outdir);
-        let active = active_jobs(&outdir, "render");
-        if !active.is_empty() {
+        let running = active_jobs(&outdir, "render", "PENDING,RUNNING,SUSPENDED,REQUEUED");
+        let merging = active_jobs(&outdir, "merge", "RUNNING");
+        if !running.is_empty() || !merging.is_empty() {
             return Err(Failure::BadInput(format!(
-                "render jobs {} of this folder are still queued or running; wait for them \
+                "jobs {} of this folder are still queued or running; wait for them \
                  (prism farm status {}) or cancel them with scancel",
-                active.join(", "),
-                outdir.display()
+                [running, merging].concat().join(", "),
+                shell_word(paths.outdir())
             )));
         }
     }
-    let progress = Progress::of(&plan, &outdir);
-    let array = array_spec(&progress.missing_tasks, args.max_running);
-    let render_cmd = format!(
-        "sbatch --parsable --array={array} {}/render.sbatch",
-        outdir.display()
-    );
+    if let Some(&last) = progress.missing_tasks.last()
+        && let Some(max) = max_array_size()
+        && last >= max
+    {
+        return Err(Failure::BadInput(format!(
+            "task {last} is beyond this cluster's MaxArraySize ({max}: array indices up to {}); \
+             use fewer frames or tiles per farm render",
+            max - 1
+        )));
+    }
+    write_file(
+        &outdir.join("render.sbatch"),
+        &render_script(&plan, &paths, args),
+    )?;
+    write_file(&outdir.join("merge.sbatch"), &merge_script(&paths, args))?;
+
     if progress.missing_tasks.is_empty() && progress.mergeable.is_empty() {
         say!(
             "{}: every frame is merged; nothing to submit",
@@ -57,53 +67,103 @@ pub fn run(args: &SlurmArgs) -> Result<(), Failure> {
         );
         return Ok(());
     }
+    let array = array_spec(&progress.missing_tasks, args.max_running);
+    let render_args = [
+        format!("--array={array}"),
+        log_option(&paths, "render_%A_%a.log"),
+        script(&paths, "render.sbatch"),
+    ];
+    let merge_args = [
+        log_option(&paths, "merge_%j.log"),
+        script(&paths, "merge.sbatch"),
+    ];
     if !args.submit {
         say!(
             "wrote {0}/render.sbatch and {0}/merge.sbatch; to submit:",
             outdir.display()
         );
+        let words = |args: &[String]| {
+            args.iter()
+                .map(|a| shell_word(a))
+                .collect::<Vec<_>>()
+                .join(" ")
+        };
         if progress.missing_tasks.is_empty() {
-            say!("  sbatch {}/merge.sbatch", outdir.display());
+            say!("  sbatch {}", words(&merge_args));
         } else {
-            say!("  id=$({render_cmd})");
-            say!(
-                "  sbatch --dependency=afterok:$id {}/merge.sbatch",
-                outdir.display()
-            );
+            say!("  id=$(sbatch --parsable {})", words(&render_args));
+            say!("  sbatch --dependency=afterany:$id {}", words(&merge_args));
         }
         return Ok(());
     }
+    // A merge still waiting is replaced by the one submitted now.
+    for id in active_jobs(&outdir, "merge", "PENDING") {
+        let _ = Command::new("scancel").arg(&id).status();
+    }
     let mut dependency = Vec::new();
     if !progress.missing_tasks.is_empty() {
-        let id = sbatch(&[
-            format!("--array={array}"),
-            outdir.join("render.sbatch").display().to_string(),
-        ])?;
+        let id = sbatch(&outdir, &render_args)?;
         record(&outdir, "render", &id)?;
         say!(
             "submitted render job {id}: {} tasks ({array})",
             progress.missing_tasks.len()
         );
-        dependency.push(format!("--dependency=afterok:{id}"));
+        // afterany: the merge runs whatever became of the tasks and merges
+        // every frame that is whole.
+        dependency.push(format!("--dependency=afterany:{id}"));
     }
-    let mut merge_args = dependency;
-    merge_args.push(outdir.join("merge.sbatch").display().to_string());
-    let id = sbatch(&merge_args)?;
+    let id = sbatch(&outdir, &[dependency, merge_args.to_vec()].concat())?;
     record(&outdir, "merge", &id)?;
     say!("submitted merge job {id}");
     Ok(())
 }
 
-/// Single quotes for the shell.
-fn quote(s: &str) -> String {
-    format!("'{}'", s.replace('\'', r"'\''"))
+/// Slurm partition names: letters, digits, `_`, `.` and `-`, several
+/// separated by commas. Anything else is refused rather than quoted: a
+/// `#SBATCH` line is not a shell line.
+fn check_partition(p: &str) -> Result<(), Failure> {
+    let bad = p
+        .chars()
+        .find(|&c| !(c.is_ascii_alphanumeric() || "_.-,".contains(c)));
+    match bad {
+        _ if p.is_empty() => Err(Failure::BadInput(
+            "--partition: expected a partition name".into(),
+        )),
+        Some(c) => Err(Failure::BadInput(format!(
+            "--partition {p:?}: contains {c:?}, which {BACKEND} does not allow in a partition \
+             name (letters, digits, `_`, `.`, `-`, and `,` between names)"
+        ))),
+        None => Ok(()),
+    }
 }
 
-fn directives(args: &SlurmArgs, name: &str, log: &str, outdir: &Path) -> String {
-    let mut s = format!(
-        "#!/bin/bash\n#SBATCH --job-name={name}\n#SBATCH --output={}/logs/{log}\n",
-        outdir.display()
-    );
+/// Slurm reads a backslash in a log path as "no patterns here", which
+/// would turn the escaped `%%` of the folder's name back into two `%`.
+fn check_log_folder(outdir: &Path) -> Result<(), Failure> {
+    if outdir.to_string_lossy().contains('\\') {
+        return Err(Failure::BadInput(format!(
+            "the output folder {:?}: contains a backslash, which {BACKEND} cannot carry in \
+             log paths; rename it",
+            outdir.display().to_string()
+        )));
+    }
+    Ok(())
+}
+
+/// `--output=` for a job's log in the output folder's logs/: `name`'s
+/// patterns (`%A`, `%a`, `%j`) expanded, the folder's `%` kept.
+fn log_option(paths: &Paths, name: &str) -> String {
+    format!("--output={}/logs/{name}", paths.outdir().replace('%', "%%"))
+}
+
+fn script(paths: &Paths, name: &str) -> String {
+    format!("{}/{name}", paths.outdir())
+}
+
+/// The `#SBATCH` lines: fixed names and checked values only. (The log
+/// path is an argument of `sbatch`; see the module's comment.)
+fn directives(args: &SlurmArgs, name: &str) -> String {
+    let mut s = format!("#!/bin/bash\n#SBATCH --job-name={name}\n");
     if let Some(p) = &args.partition {
         let _ = writeln!(s, "#SBATCH --partition={p}");
     }
@@ -113,8 +173,13 @@ fn directives(args: &SlurmArgs, name: &str, log: &str, outdir: &Path) -> String 
     s
 }
 
-fn render_script(plan: &Plan, outdir: &Path, prism: &Path, args: &SlurmArgs) -> String {
-    let mut s = directives(args, "prism-render", "render_%A_%a.log", outdir);
+/// Single quotes for bash, whatever the text holds.
+fn quote(s: &str) -> String {
+    format!("'{}'", s.replace('\'', r"'\''"))
+}
+
+fn render_script(plan: &Plan, paths: &Paths, args: &SlurmArgs) -> String {
+    let mut s = directives(args, "prism-render");
     let last = plan.task_count() - 1;
     let throttle = args.max_running.map_or(String::new(), |k| format!("%{k}"));
     let _ = write!(
@@ -122,7 +187,8 @@ fn render_script(plan: &Plan, outdir: &Path, prism: &Path, args: &SlurmArgs) -> 
         "#SBATCH --array=0-{last}{throttle}\n\
          # Written by `prism farm slurm`: task k renders tile k % TILES of frame\n\
          # FIRST + k / TILES into parts/ (written atomically: a part that exists\n\
-         # is whole). Rerun `prism farm slurm` to submit only what is missing.\n\
+         # is whole). Submit as `prism farm slurm` prints (it names the logs).\n\
+         # Rerun `prism farm slurm` to submit only what is missing.\n\
          set -euo pipefail\n\
          PRISM={prism}\nSCENE={scene}\nOUT={out}\nTILES={tiles}\nFIRST={first}\n\
          k=${{SLURM_ARRAY_TASK_ID:?run this script as a Slurm array job}}\n\
@@ -132,39 +198,27 @@ fn render_script(plan: &Plan, outdir: &Path, prism: &Path, args: &SlurmArgs) -> 
          echo \"prism farm: task $k frame $frame tile $tile/$TILES on $(hostname)\"\n\
          exec \"$PRISM\" render \"$SCENE\" --frame \"$frame\" --tile \"$tile/$TILES\" -o \"$part\" \\\n\
          \x20   ${{SLURM_CPUS_PER_TASK:+--threads \"$SLURM_CPUS_PER_TASK\"}}\n",
-        prism = quote(&prism.display().to_string()),
-        scene = quote(&plan.scene.display().to_string()),
-        out = quote(&outdir.display().to_string()),
+        prism = quote(paths.prism()),
+        scene = quote(paths.scene()),
+        out = quote(paths.outdir()),
         tiles = plan.tiles,
         first = plan.first_frame,
     );
     s
 }
 
-fn merge_script(plan: &Plan, outdir: &Path, prism: &Path, args: &SlurmArgs) -> String {
-    let mut s = directives(args, "prism-merge", "merge_%j.log", outdir);
+fn merge_script(paths: &Paths, args: &SlurmArgs) -> String {
+    let mut s = directives(args, "prism-merge");
     let _ = write!(
         s,
         "# Written by `prism farm slurm`: merges every frame whose parts are all\n\
-         # there and that is not merged yet.\n\
+         # there, each on its own; a part the merge refuses is set aside so that\n\
+         # a rerun of `prism farm slurm` renders it again.\n\
          set -euo pipefail\n\
-         PRISM={prism}\nOUT={out}\nTILES={tiles}\n\
-         for frame in $(seq {first} {last}); do\n\
-         \x20 out=$(printf '%s/frame_%04d.{ext}' \"$OUT\" \"$frame\")\n\
-         \x20 [ -e \"$out\" ] && continue\n\
-         \x20 parts=()\n\
-         \x20 for tile in $(seq 0 $(( TILES - 1 ))); do\n\
-         \x20   parts+=(\"$(printf '%s/parts/frame_%04d_tile_%04d.exr' \"$OUT\" \"$frame\" \"$tile\")\")\n\
-         \x20 done\n\
-         \x20 \"$PRISM\" merge \"${{parts[@]}}\" -o \"$out\"\n\
-         \x20 echo \"prism farm: merged frame $frame -> $out\"\n\
-         done\n",
-        prism = quote(&prism.display().to_string()),
-        out = quote(&outdir.display().to_string()),
-        tiles = plan.tiles,
-        first = plan.first_frame,
-        last = plan.last_frame,
-        ext = plan.format,
+         PRISM={prism}\nOUT={out}\n\
+         exec \"$PRISM\" farm merge \"$OUT\"\n",
+        prism = quote(paths.prism()),
+        out = quote(paths.outdir()),
     );
     s
 }
@@ -192,10 +246,13 @@ pub fn array_spec(tasks: &[u64], max_running: Option<u32>) -> String {
     spec
 }
 
-fn sbatch(args: &[String]) -> Result<String, Failure> {
+/// Runs `sbatch --parsable ARGS` in the output folder (the jobs' working
+/// folder, against which their log paths are resolved), without a shell.
+fn sbatch(outdir: &Path, args: &[String]) -> Result<String, Failure> {
     let out = Command::new("sbatch")
         .arg("--parsable")
         .args(args)
+        .current_dir(outdir)
         .output()
         .map_err(|e| Failure::Failed(format!("cannot run sbatch: {e}; is Slurm installed?")))?;
     if !out.status.success() {
@@ -235,27 +292,43 @@ fn recorded(outdir: &Path, kind: &str) -> Vec<String> {
         .unwrap_or_default()
         .lines()
         .filter_map(|l| l.strip_prefix(kind)?.strip_prefix(' '))
+        .filter(|id| !id.is_empty() && id.bytes().all(|b| b.is_ascii_digit()))
         .map(str::to_string)
         .collect()
 }
 
-/// The recorded jobs of `kind` that Slurm still has queued or running.
-fn active_jobs(outdir: &Path, kind: &str) -> Vec<String> {
+/// The recorded jobs of `kind` that Slurm has in one of `states`.
+fn active_jobs(outdir: &Path, kind: &str, states: &str) -> Vec<String> {
     recorded(outdir, kind)
         .into_iter()
         .filter(|id| {
             Command::new("squeue")
-                .args(["--noheader", "--format=%i", "--jobs", id])
+                .args([
+                    "--noheader",
+                    "--format=%i",
+                    "--states",
+                    states,
+                    "--jobs",
+                    id,
+                ])
                 .output()
                 .is_ok_and(|o| o.status.success() && !o.stdout.trim_ascii().is_empty())
         })
         .collect()
 }
 
-fn cancel_waiting_merges(outdir: &Path) {
-    for id in active_jobs(outdir, "merge") {
-        let _ = Command::new("scancel").arg(&id).status();
-    }
+/// The cluster's MaxArraySize, where `scontrol` can tell.
+fn max_array_size() -> Option<u64> {
+    let out = Command::new("scontrol")
+        .args(["show", "config"])
+        .output()
+        .ok()?;
+    String::from_utf8_lossy(&out.stdout).lines().find_map(|l| {
+        let (key, value) = l.split_once('=')?;
+        (key.trim() == "MaxArraySize")
+            .then(|| value.trim().parse().ok())
+            .flatten()
+    })
 }
 
 #[cfg(test)]
@@ -267,5 +340,13 @@ mod tests {
         assert_eq!(array_spec(&[0, 1, 2, 3], Some(2)), "0-3%2");
         assert_eq!(array_spec(&[1, 3, 4, 5, 9], None), "1,3-5,9");
         assert_eq!(array_spec(&[7], None), "7");
+    }
+
+    #[test]
+    fn partitions_are_names_or_refused() {
+        assert!(check_partition("gpu").is_ok() && check_partition("a_1.b-2,c").is_ok());
+        for bad in ["", "a b", "a\nb", "a;b", "$(x)", "a%j", "é"] {
+            assert!(check_partition(bad).is_err(), "{bad:?}");
+        }
     }
 }

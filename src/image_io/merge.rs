@@ -46,6 +46,16 @@ fn refuse(message: String) -> MergeError {
 /// atomically in the format its extension names. The output may not be one
 /// of the parts.
 pub fn merge_parts(paths: &[PathBuf], output: &Path) -> Result<(), MergeError> {
+    merge_parts_with(paths, output, |_, _| Ok(()))
+}
+
+/// [`merge_parts`], each part read also passing `expected` (a farm knows
+/// which tile each file must hold); its refusal blames the part.
+pub fn merge_parts_with(
+    paths: &[PathBuf],
+    output: &Path,
+    expected: impl Fn(&Path, &Part) -> Result<(), String>,
+) -> Result<(), MergeError> {
     check_writable(output).map_err(|e| refuse(e.to_string()))?;
     if let Ok(out) = output.canonicalize()
         && let Some(same) = paths
@@ -64,6 +74,7 @@ pub fn merge_parts(paths: &[PathBuf], output: &Path) -> Result<(), MergeError> {
             return Err(blame(path, "is given twice".into()));
         }
         let part = read_part(path).map_err(|e| blame(path, e))?;
+        expected(path, &part).map_err(|e| blame(path, e))?;
         parts.push((path.clone(), part));
     }
     let Some(reference) = most_common_provenance(&parts) else {

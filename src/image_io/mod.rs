@@ -11,7 +11,7 @@ pub mod exr;
 pub mod merge;
 
 pub use exr::{Part, Provenance, read_part};
-pub use merge::{MergeError, merge_parts, missing_regions};
+pub use merge::{MergeError, merge_parts, merge_parts_with, missing_regions};
 
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
