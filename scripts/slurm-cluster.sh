@@ -3,12 +3,30 @@
 #   scripts/slurm-cluster.sh up     install slurm-wlm and munge when absent,
 #                                   write slurm.conf for this host and its
 #                                   cores, start munged, slurmctld, slurmd
-#   scripts/slurm-cluster.sh down   stop them
+#   scripts/slurm-cluster.sh down   stop the daemons `up` started (by
+#                                   their pid files), never others
 # Runs as root without systemd. State lives in /var/lib/prism-slurm.
 set -euo pipefail
 
 STATE=/var/lib/prism-slurm
 CONF=/etc/slurm/slurm.conf
+MUNGE_PID=/run/munge/prism-munged.pid
+
+# Whether a live process (not a zombie) named $1 runs.
+running() {
+    local pid
+    for pid in $(pgrep -x "$1"); do
+        [ "$(awk '{print $3}' "/proc/$pid/stat" 2>/dev/null)" != Z ] && return 0
+    done
+    return 1
+}
+
+pid_file() {
+    case "$1" in
+        munged) echo "$MUNGE_PID" ;;
+        *) echo "$STATE/$1.pid" ;;
+    esac
+}
 
 up() {
     if ! command -v slurmctld >/dev/null || ! command -v munged >/dev/null; then
@@ -51,9 +69,22 @@ MinJobAge=300
 NodeName=$host CPUs=$cpus RealMemory=$mem State=UNKNOWN
 PartitionName=main Nodes=$host Default=YES MaxTime=INFINITE State=UP
 CONF
-    pgrep -x munged >/dev/null || su -s /bin/sh munge -c "munged --force" 2>/dev/null || munged --force
-    pgrep -x slurmctld >/dev/null || slurmctld
-    pgrep -x slurmd >/dev/null || slurmd
+    # A daemon already running (the host's own) is used, not restarted,
+    # and `down` leaves it alone: only those started here are recorded.
+    if ! running munged; then
+        # munged's own folder: it may run as the munge user.
+        su -s /bin/sh munge -c "munged --force --pid-file=$MUNGE_PID" 2>/dev/null ||
+            munged --force --pid-file="$MUNGE_PID"
+        echo munged >> "$STATE/started"
+    fi
+    if ! running slurmctld; then
+        slurmctld
+        echo slurmctld >> "$STATE/started"
+    fi
+    if ! running slurmd; then
+        slurmd
+        echo slurmd >> "$STATE/started"
+    fi
     # Wait for the node to be idle.
     for _ in $(seq 1 60); do
         if sinfo --noheader --format=%T 2>/dev/null | grep -q idle; then
@@ -69,9 +100,17 @@ CONF
 }
 
 down() {
-    pkill -x slurmd || true
-    pkill -x slurmctld || true
-    pkill -x munged || true
+    [ -f "$STATE/started" ] || return 0
+    local name pid
+    for name in slurmd slurmctld munged; do
+        grep -qx "$name" "$STATE/started" || continue
+        pid=$(cat "$(pid_file "$name")" 2>/dev/null || true)
+        # The pid must still be that daemon, not a process that reused it.
+        if [ -n "$pid" ] && [ "$(cat "/proc/$pid/comm" 2>/dev/null)" = "$name" ]; then
+            kill "$pid" || true
+        fi
+    done
+    rm -f "$STATE/started"
     sleep 1
 }
 

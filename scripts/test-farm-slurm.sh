@@ -4,8 +4,12 @@
 # `prism farm slurm --submit`, and compares the merged frames with
 # single-process renders byte for byte. Then the fault test: one task is
 # cancelled (scancel), `prism farm slurm` is run again, and it must submit
-# that part only; the result must still be identical. Tears the cluster
-# down afterwards. Needs root (CI runs as root).
+# that part only; the result must still be identical. Then: a rerun while
+# the array still runs is refused and cancels nothing (the merge still
+# merges); an output folder and scene folder named with quotes, `$()`,
+# backticks, `;`, `%j`, spaces and non-ASCII render the same frames on the
+# real cluster and run nothing. Tears the cluster down afterwards (only the
+# daemons it started). Needs root (CI runs as root).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$PWD
@@ -34,8 +38,9 @@ wait_jobs() {
 }
 
 compare() {
+    local scene=${2:-$WORK/scene.toml}
     for f in 0 1; do
-        "$PRISM" render "$WORK/scene.toml" --frame "$f" -q -o "$WORK/ref_$f.exr"
+        "$PRISM" render "$scene" --frame "$f" -q -o "$WORK/ref_$f.exr"
         cmp "$WORK/ref_$f.exr" "$1/frame_000$f.exr" || fail "$1: frame $f differs from the single-process render"
     done
 }
@@ -69,3 +74,28 @@ echo "$status" | grep -q "merged: 2 of 2 frames" || fail "status does not report
 out=$("$PRISM" farm slurm "$WORK/scene.toml" -o "$WORK/b" --tiles 4 --frames 0-1 --submit)
 echo "$out" | grep -q "nothing to submit" || fail "a finished farm render resubmitted work: $out"
 echo "ok: only the missing part was resubmitted; frames identical"
+
+echo "== a rerun while the array runs: refused, nothing cancelled"
+out=$("$PRISM" farm slurm "$WORK/scene.toml" -o "$WORK/c" --tiles 4 --frames 0-1 --max-running 1 --submit)
+echo "$out"
+set +e
+again=$("$PRISM" farm slurm "$WORK/scene.toml" -o "$WORK/c" --tiles 4 --frames 0-1 --submit 2>&1)
+code=$?
+set -e
+echo "$again"
+[ "$code" = 2 ] || fail "a rerun during the render array exited $code, not 2"
+echo "$again" | grep -q "still queued or running" || fail "the refusal does not say why"
+wait_jobs "$WORK/c"
+compare "$WORK/c"
+echo "ok: the refused rerun left the merge in place; frames identical"
+
+echo "== hostile folder names on the real cluster"
+H=$'it\'s $(touch PWNED) `touch PWNED` ; %j %A "q" é✓'
+mkdir -p "$WORK/scene $H"
+cp "$WORK/scene.toml" "$WORK/scene $H/scene.toml"
+"$PRISM" farm slurm "$WORK/scene $H/scene.toml" -o "$WORK/out $H" --tiles 3 --frames 0-1 --partition main --submit
+wait_jobs "$WORK/out $H"
+compare "$WORK/out $H" "$WORK/scene $H/scene.toml"
+ls "$WORK/out $H/logs/" | grep -q "^render_[0-9]*_0.log$" || fail "the task logs are not where they belong"
+[ ! -e /PWNED ] && [ -z "$(find "$WORK" -name PWNED)" ] || fail "a folder name ran a command"
+echo "ok: hostile folder names render the same frames and run nothing"

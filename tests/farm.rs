@@ -571,3 +571,74 @@ fn a_foreign_checkpoint_tile_is_traced_again() {
         "a foreign tile was used"
     );
 }
+
+/// `--frames` with `--checkpoint`, killed after the first frame is written:
+/// the rerun skips that frame (its record and file still match), renders
+/// the rest, gives the same bytes, and leaves no checkpoint folder.
+#[test]
+fn a_killed_frame_sequence_resumes_without_rendering_finished_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene(d);
+    let args = [
+        "render",
+        s,
+        "--width",
+        "200",
+        "--height",
+        "150",
+        "--spp",
+        "16",
+        "--threads",
+        "1",
+        "--frames",
+        "0-2",
+    ];
+    ok(d, &[&args[..], &["-q", "-o", "ref_####.png"]].concat());
+    let mut child = Command::new(env!("CARGO_BIN_EXE_prism"))
+        .args(
+            [
+                &args[..],
+                &["-q", "--checkpoint", "ck", "-o", "out_####.png"],
+            ]
+            .concat(),
+        )
+        .current_dir(d)
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while !d.join("ck/frame_0000.done").exists() && start.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(d.join("out_0000.png").exists() && !d.join("out_0002.png").exists());
+    let first = std::fs::metadata(d.join("out_0000.png"))
+        .unwrap()
+        .modified()
+        .unwrap();
+    let o = prism(
+        d,
+        &[&args[..], &["--checkpoint", "ck", "-o", "out_####.png"]].concat(),
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("frame 0 is already written"), "{err}");
+    assert_eq!(
+        std::fs::metadata(d.join("out_0000.png"))
+            .unwrap()
+            .modified()
+            .unwrap(),
+        first,
+        "frame 0 was written again"
+    );
+    for f in 0..3 {
+        let name = format!("_{f:04}.png");
+        assert!(
+            bytes(d, &format!("ref{name}")) == bytes(d, &format!("out{name}")),
+            "frame {f}"
+        );
+    }
+    assert!(!d.join("ck").exists(), "the checkpoint folder stays behind");
+}

@@ -341,6 +341,9 @@ pub fn render_command(args: &RenderArgs) -> ExitCode {
             return code;
         }
     }
+    if let Some(dir) = args.checkpoint.as_ref().filter(|_| args.frames.is_some()) {
+        remove_frame_records(dir);
+    }
     ExitCode::SUCCESS
 }
 
@@ -365,6 +368,26 @@ impl Job<'_> {
             // A debug view is another image: its parts never merge with
             // the picture's.
             provenance.settings = format!("{} aov={}", provenance.settings, aov.name());
+        }
+        // With --frames, a frame written before an interruption is not
+        // rendered again: its record in the checkpoint folder says so, and
+        // the image is still the one written.
+        let record = args
+            .checkpoint
+            .as_ref()
+            .filter(|_| args.frames.is_some())
+            .map(|dir| FrameRecord::new(dir, settings.frame, &provenance, region, self.output));
+        if let Some(r) = &record
+            && r.done()
+        {
+            if !args.quiet {
+                eprintln!(
+                    "prism: frame {} is already written ({}); skipped",
+                    settings.frame,
+                    self.output.display()
+                );
+            }
+            return ExitCode::SUCCESS;
         }
         let checkpoint = match &args.checkpoint {
             None => None,
@@ -496,6 +519,11 @@ impl Job<'_> {
         {
             eprintln!("warning: the checkpoint could not be removed: {e}");
         }
+        if let Some(r) = &record
+            && let Err(e) = r.save()
+        {
+            eprintln!("warning: {e}");
+        }
         if !args.quiet {
             let s = output.stats;
             eprintln!(
@@ -519,6 +547,84 @@ impl Job<'_> {
             );
         }
         ExitCode::SUCCESS
+    }
+}
+
+/// That a frame of a checkpointed `--frames` render was written: what it
+/// was rendered from (the checkpoint key), where it went, and the SHA-256
+/// of the file, in `DIR/frame_FFFF.done`.
+struct FrameRecord {
+    path: PathBuf,
+    key: String,
+    output: PathBuf,
+}
+
+impl FrameRecord {
+    fn new(dir: &Path, frame: u32, provenance: &Provenance, region: Region, output: &Path) -> Self {
+        FrameRecord {
+            path: dir.join(format!("frame_{frame:04}.done")),
+            key: format!(
+                "{}output={}\n",
+                provenance.to_text(region),
+                output.display()
+            ),
+            output: output.to_path_buf(),
+        }
+    }
+
+    fn text(&self) -> Option<String> {
+        use sha2::{Digest, Sha256};
+        let bytes = std::fs::read(&self.output).ok()?;
+        let digest: String = Sha256::digest(&bytes)
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        Some(format!("{}sha256={digest}\n", self.key))
+    }
+
+    /// Whether the frame was written by this render and its file is as
+    /// written.
+    fn done(&self) -> bool {
+        std::fs::read_to_string(&self.path).is_ok_and(|saved| Some(saved) == self.text())
+    }
+
+    fn save(&self) -> Result<(), String> {
+        let fail = |e: std::io::Error| format!("{}: {e}", self.path.display());
+        let text = self.text().ok_or_else(|| {
+            format!(
+                "{}: cannot be read back to record it",
+                self.output.display()
+            )
+        })?;
+        let dir = self.path.parent().unwrap_or(Path::new("."));
+        std::fs::create_dir_all(dir).map_err(fail)?;
+        let mut temp = tempfile::NamedTempFile::new_in(dir).map_err(fail)?;
+        std::io::Write::write_all(&mut temp, text.as_bytes()).map_err(fail)?;
+        temp.persist(&self.path).map_err(|e| fail(e.error))?;
+        Ok(())
+    }
+}
+
+/// Removes the frame records and the checkpoint folder once every frame
+/// is written; anything else a user put there stays, and so does the
+/// folder then.
+fn remove_frame_records(dir: &Path) {
+    if let Ok(entries) = std::fs::read_dir(dir) {
+        for entry in entries.flatten() {
+            let name = entry.file_name();
+            let name = name.to_string_lossy();
+            if name.starts_with("frame_") && name.ends_with(".done") {
+                let _ = std::fs::remove_file(entry.path());
+            }
+        }
+    }
+    if let Err(e) = std::fs::remove_dir(dir)
+        && e.kind() != std::io::ErrorKind::NotFound
+    {
+        eprintln!(
+            "warning: the checkpoint folder {} is not removed: {e}",
+            dir.display()
+        );
     }
 }
 
