@@ -77,7 +77,14 @@ fn template(scene: &Path, tiles: u32, frames: (u32, u32), format: &str) -> serde
     let frame_range = format!("{}-{}", frames.0, frames.1);
     json!({
         "specificationVersion": "jobtemplate-2023-09",
-        "name": format!("prism {}", scene.file_name().map_or(String::new(), |n| n.to_string_lossy().into_owned())),
+        // The job name is a format string: only plain characters of the
+        // scene's name go into it.
+        "name": format!("prism {}", scene.file_name().map_or(String::new(), |n| {
+            n.to_string_lossy()
+                .chars()
+                .map(|c| if c.is_alphanumeric() || "._-".contains(c) { c } else { '_' })
+                .collect()
+        })),
         "parameterDefinitions": [
             // Default paths may only point below the template's folder, so
             // the executable and the scene are given when the job is run.
