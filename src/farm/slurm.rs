@@ -20,6 +20,8 @@ use super::{Failure, Paths, Plan, Progress, SlurmArgs, plan_in, shell_word, writ
 /// Submitted job IDs, one `render ID` or `merge ID` line each.
 const JOBS: &str = "jobs.txt";
 const BACKEND: &str = "the Slurm backend";
+/// Slurm's MaxArraySize when slurm.conf does not set it.
+const DEFAULT_MAX_ARRAY_SIZE: u64 = 1001;
 
 pub fn run(args: &SlurmArgs) -> Result<(), Failure> {
     if let Some(p) = &args.partition {
@@ -44,7 +46,10 @@ pub fn run(args: &SlurmArgs) -> Result<(), Failure> {
             )));
         }
     }
+    // The cluster is asked only when submitting: without a controller to
+    // answer, scontrol waits for seconds.
     if let Some(&last) = progress.missing_tasks.last()
+        && args.submit
         && let Some(max) = max_array_size()
         && last >= max
     {
@@ -93,6 +98,14 @@ pub fn run(args: &SlurmArgs) -> Result<(), Failure> {
         } else {
             say!("  id=$(sbatch --parsable {})", words(&render_args));
             say!("  sbatch --dependency=afterany:$id {}", words(&merge_args));
+        }
+        if progress.missing_tasks.last() >= Some(&DEFAULT_MAX_ARRAY_SIZE) {
+            say!(
+                "note: task indices reach {}; Slurm's default MaxArraySize ({DEFAULT_MAX_ARRAY_SIZE}) \
+                 allows up to {} (scontrol show config | grep MaxArraySize)",
+                progress.missing_tasks.last().unwrap_or(&0),
+                DEFAULT_MAX_ARRAY_SIZE - 1
+            );
         }
         return Ok(());
     }
