@@ -29,7 +29,11 @@ pub mod limits;
 pub mod math;
 pub mod render;
 pub mod scene;
+pub mod settings;
 pub mod shading;
+pub mod stats;
 
-pub use render::{RenderObserver, RenderOutput, RenderSettings, render};
+pub use render::{RenderObserver, RenderOutput, render};
 pub use scene::{Scene, SceneError};
+pub use settings::RenderSettings;
+pub use stats::RayStats;

@@ -1,5 +1,6 @@
 //! The `prism` command: parses arguments and calls the library.
 
+mod args;
 mod cli;
 mod farm;
 mod serve;

@@ -15,15 +15,14 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
-use clap::{Args, Parser, Subcommand};
-use prism::scene::LoadOptions;
+use clap::{Parser, Subcommand};
 use prism::{Scene, SceneError, limits};
 
+pub use crate::args::{BAD_INPUT, INTERRUPTED, LoadArgs};
 use crate::farm::FarmCommand;
 use explain::ExplainArgs;
 use merge::MergeArgs;
 use render::RenderArgs;
-pub use render::parse_frames;
 
 /// Prism, an exact Whitted-style ray tracer.
 #[derive(Parser)]
@@ -60,62 +59,6 @@ enum Command {
         load: LoadArgs,
     },
 }
-
-/// What a scene may read and use while loading.
-#[derive(Args)]
-pub struct LoadArgs {
-    /// Let the scene read files below DIR too (repeatable). By default a
-    /// scene reads only below its own folder; PRISM_ALLOW_READ adds folders
-    /// separated by ':'.
-    #[arg(long, value_name = "DIR")]
-    allow_read: Vec<PathBuf>,
-    /// Memory for decoded textures, in MiB.
-    #[arg(long, value_name = "MIB", default_value_t = limits::DEFAULT_TEXTURE_MIB,
-          value_parser = clap::value_parser!(u64).range(1..=1 << 30))]
-    texture_memory: u64,
-}
-
-impl Default for LoadArgs {
-    /// What a scene reads with no options: its own folder and
-    /// PRISM_ALLOW_READ's.
-    fn default() -> Self {
-        LoadArgs {
-            allow_read: Vec::new(),
-            texture_memory: limits::DEFAULT_TEXTURE_MIB,
-        }
-    }
-}
-
-impl LoadArgs {
-    /// The load options, or a message naming a folder that does not exist.
-    pub fn options(&self) -> Result<LoadOptions, String> {
-        let from_env = std::env::var_os("PRISM_ALLOW_READ")
-            .map(|v| std::env::split_paths(&v).collect::<Vec<_>>())
-            .unwrap_or_default();
-        let mut allow_read = Vec::new();
-        for dir in self.allow_read.iter().chain(&from_env) {
-            if dir.as_os_str().is_empty() {
-                continue;
-            }
-            if !dir.is_dir() {
-                return Err(format!(
-                    "{}: --allow-read (or PRISM_ALLOW_READ) names no folder",
-                    dir.display()
-                ));
-            }
-            allow_read.push(dir.clone());
-        }
-        Ok(LoadOptions {
-            allow_read,
-            texture_budget: self.texture_memory << 20,
-            frame: 0,
-        })
-    }
-}
-
-pub const BAD_INPUT: u8 = 2;
-/// 128 + SIGINT, what shells report for a program stopped by Ctrl-C.
-pub const INTERRUPTED: u8 = 130;
 
 /// Runs the command line and returns the process exit code.
 pub fn run() -> ExitCode {

@@ -18,6 +18,7 @@ use prism::render::{Checkpoint, Region, RenderError, render_region};
 use prism::{RenderObserver, RenderSettings, Scene, limits};
 
 use super::{BAD_INPUT, INTERRUPTED, LoadArgs, report_scene_error};
+use crate::args::parse_frames;
 use crate::tev::Tev;
 
 #[derive(Args)]
@@ -128,20 +129,6 @@ fn parse_tile(s: &str) -> Result<(u32, u32), String> {
         return Err(format!("tile {i}/{n}: needs 0 <= I < N"));
     }
     Ok((i, n))
-}
-
-/// `A-B` with A <= B, or a single frame `A`.
-pub fn parse_frames(s: &str) -> Result<(u32, u32), String> {
-    let bad = || format!("expected a frame range A-B (e.g. 0-47), got `{s}`");
-    let (a, b) = s.split_once('-').unwrap_or((s, s));
-    let (a, b) = (
-        a.trim().parse::<u32>().map_err(|_| bad())?,
-        b.trim().parse::<u32>().map_err(|_| bad())?,
-    );
-    if a > b {
-        return Err(format!("frame range {a}-{b} is reversed"));
-    }
-    Ok((a, b))
 }
 
 /// `path` with its run of `#` replaced by `frame`, zero-padded to the run's

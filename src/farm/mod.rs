@@ -31,7 +31,7 @@ use prism::Scene;
 use prism::render::Region;
 use serde::{Deserialize, Serialize};
 
-use crate::cli::{BAD_INPUT, LoadArgs, parse_frames};
+use crate::args::{BAD_INPUT, LoadArgs, parse_frames};
 
 #[derive(Subcommand)]
 pub enum FarmCommand {
@@ -580,7 +580,7 @@ mod tests {
     fn shell_words_are_quoted_when_needed() {
         assert_eq!(shell_word("/a/b-c_d.toml"), "/a/b-c_d.toml");
         assert_eq!(shell_word("a b"), "'a b'");
-        assert_eq!(shell_word("it's $(x)"), r"'it'''s $(x)'");
+        assert_eq!(shell_word("it's $(x)"), r"'it'\''s $(x)'");
         assert_eq!(shell_word(""), "''");
     }
 }

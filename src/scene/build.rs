@@ -41,7 +41,7 @@ use crate::geometry::{Ellipsoid, Mesh, MeshInstance, Plane, Polygon, Sphere};
 use crate::lights::{Light, LightShape};
 use crate::limits;
 use crate::math::Transform;
-use crate::render::RenderSettings;
+use crate::settings::RenderSettings;
 use crate::shading::{Fresnel, Highlight, Material, Texture};
 
 /// Checks the scene and builds everything but its acceleration structure;

@@ -21,7 +21,7 @@ use glam::DVec3;
 use crate::accel::Aggregate;
 use crate::camera::Camera;
 use crate::lights::Light;
-use crate::render::RenderSettings;
+use crate::settings::RenderSettings;
 use crate::shading::Material;
 
 /// The built-in demo scene (Whitted's 1980 picture), used when no scene

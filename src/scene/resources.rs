@@ -32,6 +32,37 @@ pub struct LoadOptions {
     pub frame: u32,
 }
 
+impl LoadOptions {
+    /// The read policy every front end applies: a scene reads below its
+    /// own folder, below each of `allow_read`, and below each folder of
+    /// the environment variable PRISM_ALLOW_READ (separated by `:`);
+    /// decoded textures may take `texture_mib` MiB. A folder that does not
+    /// exist is an error, named.
+    pub fn with_allow_read(allow_read: &[PathBuf], texture_mib: u64) -> Result<Self, String> {
+        let from_env = std::env::var_os("PRISM_ALLOW_READ")
+            .map(|v| std::env::split_paths(&v).collect::<Vec<_>>())
+            .unwrap_or_default();
+        let mut dirs = Vec::new();
+        for dir in allow_read.iter().chain(&from_env) {
+            if dir.as_os_str().is_empty() {
+                continue;
+            }
+            if !dir.is_dir() {
+                return Err(format!(
+                    "{}: --allow-read (or PRISM_ALLOW_READ) names no folder",
+                    dir.display()
+                ));
+            }
+            dirs.push(dir.clone());
+        }
+        Ok(LoadOptions {
+            allow_read: dirs,
+            texture_budget: texture_mib.saturating_mul(1 << 20),
+            frame: 0,
+        })
+    }
+}
+
 impl Default for LoadOptions {
     fn default() -> Self {
         LoadOptions {

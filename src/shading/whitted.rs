@@ -14,8 +14,8 @@ use crate::geometry::Hit;
 use crate::lights::{Light, LightSample};
 use crate::math::Ray;
 use crate::math::rng::PixelRng;
-use crate::render::RayStats;
 use crate::scene::Scene;
+use crate::stats::RayStats;
 
 /// From this many feelers to a sphere light on, the scene is culled
 /// against their hull first (below, the BVH query alone is cheaper).

@@ -1,4 +1,5 @@
-//! Ray counts by kind, summed per tile and then over the image.
+//! Ray counts by kind, summed per tile and then over the image: plain data
+//! that the shading model counts into and the render loop reports.
 
 use std::ops::AddAssign;
 use std::time::Duration;
