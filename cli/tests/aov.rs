@@ -13,7 +13,7 @@ use prism::{RenderSettings, Scene, render};
 fn scene() -> Scene {
     Scene::load(std::path::Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/scenes/whitted.toml"
+        "/../scenes/whitted.toml"
     )))
     .unwrap()
 }
@@ -97,7 +97,7 @@ fn views_match_the_explained_ray_trees() {
 #[test]
 fn every_view_writes_exr_and_a_false_colour_png() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/whitted.toml");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/whitted.toml");
     for name in [
         "normal", "depth", "object", "material", "bounces", "feelers", "time",
     ] {

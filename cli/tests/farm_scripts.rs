@@ -56,8 +56,11 @@ fn prism_in(dir: &Path) -> PathBuf {
 /// The Whitted scene at 40 × 30, 1 spp, in `dir`.
 fn small_scene(dir: &Path) -> PathBuf {
     std::fs::create_dir_all(dir).unwrap();
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/whitted.toml"))
-        .unwrap();
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenes/whitted.toml"
+    ))
+    .unwrap();
     let text: String = text
         .lines()
         .map(|l| {
@@ -281,7 +284,7 @@ fn plans_that_cannot_run_are_refused_before_anything_is_written() {
             &out,
             &["--tiles 31", "image height 30"],
         );
-        let rolling = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/rolling.toml");
+        let rolling = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/rolling.toml");
         refused(
             &prism,
             d,

@@ -349,7 +349,7 @@ fn bad_output_and_missing_scene_are_refused() {
 
 #[test]
 fn every_example_scene_checks_and_renders() {
-    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let scenes = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/..")).join("scenes");
     let dir = tempfile::tempdir().unwrap();
     let mut count = 0;
     for entry in std::fs::read_dir(&scenes).unwrap() {
@@ -376,7 +376,8 @@ fn every_example_scene_checks_and_renders() {
 #[test]
 fn interrupted_render_writes_nothing() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/soft-shadows.toml");
+    let scene =
+        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/..")).join("scenes/soft-shadows.toml");
     std::fs::write(dir.path().join("out.png"), b"previous image").unwrap();
     // A render of a minute or more, interrupted after half a second.
     let child = Command::new(env!("CARGO_BIN_EXE_prism"))

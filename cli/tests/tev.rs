@@ -30,7 +30,7 @@ fn tiles_reach_tev_and_make_up_the_picture() {
     });
     let dir = tempfile::tempdir().unwrap();
     let exr = dir.path().join("out.exr");
-    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/whitted.toml");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/whitted.toml");
     let o = Command::new(env!("CARGO_BIN_EXE_prism"))
         .args([
             "render",

@@ -1,11 +1,11 @@
 //! The `prism` command: parses arguments and calls the library.
 
 mod args;
-mod cli;
+mod commands;
 mod farm;
 mod serve;
 mod tev;
 
 fn main() -> std::process::ExitCode {
-    cli::run()
+    commands::run()
 }

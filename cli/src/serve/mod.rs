@@ -31,7 +31,7 @@ use futures_util::stream::{self, StreamExt};
 use serde::Deserialize;
 use tokio::sync::broadcast::error::RecvError;
 
-use crate::cli::{BAD_INPUT, LoadArgs};
+use crate::commands::{BAD_INPUT, LoadArgs};
 use worker::Shared;
 
 /// Event streams (open pages) served at once.

@@ -29,7 +29,7 @@ fn stderr(o: &Output) -> String {
 }
 
 fn models_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/models")
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/..")).join("scenes/models")
 }
 
 /// A scene in `dir` with one mesh object reading `file`.
@@ -518,7 +518,7 @@ fn messages_say_what_is_wrong_in_a_readable_length() {
 #[test]
 fn check_reports_what_the_scene_holds() {
     let o = prism(
-        Path::new(env!("CARGO_MANIFEST_DIR")),
+        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/..")),
         &["check", "scenes/models.toml"],
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));

@@ -38,7 +38,7 @@ fn bytes(dir: &Path, name: &str) -> Vec<u8> {
 }
 
 fn scene(dir: &Path) -> &'static str {
-    let from = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/whitted.toml");
+    let from = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/whitted.toml");
     std::fs::copy(from, dir.join("s.toml")).unwrap();
     "s.toml"
 }
@@ -280,7 +280,10 @@ fn a_killed_checkpointed_render_resumes_to_the_same_bytes() {
 fn keyed_values_move_the_glass_ball() {
     use prism::accel::Shape;
     use prism::scene::LoadOptions;
-    let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/rolling.toml"));
+    let path = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenes/rolling.toml"
+    ));
     let centre = |frame: u32| {
         let options = LoadOptions {
             frame,

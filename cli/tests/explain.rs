@@ -12,7 +12,7 @@ use prism::{RenderSettings, Scene, render};
 fn whitted() -> Scene {
     Scene::load(std::path::Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/scenes/whitted.toml"
+        "/../scenes/whitted.toml"
     )))
     .unwrap()
 }
@@ -126,7 +126,7 @@ fn hits_indices_and_stops_are_reported() {
 
 #[test]
 fn the_command_prints_the_same_tree_as_json() {
-    let scene_path = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/whitted.toml");
+    let scene_path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/whitted.toml");
     let out = Command::new(env!("CARGO_BIN_EXE_prism"))
         .args([
             "explain", scene_path, "--pixel", "20,30", "--json", "--width", "64", "--height", "48",
