@@ -217,8 +217,15 @@ async fn serve(args: &ServeArgs, options: prism::scene::LoadOptions) -> ExitCode
         .layer(middleware::from_fn_with_state(app.clone(), guard))
         .with_state(app);
     let scene = args.scene.display();
+    // Not println!: a closed stdout (a script that read the URL and went)
+    // must not stop the server.
+    let say = |line: String| {
+        use std::io::Write;
+        let mut out = std::io::stdout().lock();
+        let _ = writeln!(out, "{line}").and_then(|()| out.flush());
+    };
     match &token {
-        None => println!("prism: previewing {scene} at http://{addr}/"),
+        None => say(format!("prism: previewing {scene} at http://{addr}/")),
         Some(token) => {
             // Unspecified: reachable on loopback too, printed first.
             let local = if addr.ip().is_unspecified() {
@@ -226,15 +233,20 @@ async fn serve(args: &ServeArgs, options: prism::scene::LoadOptions) -> ExitCode
             } else {
                 addr
             };
-            println!("prism: previewing {scene} at http://{local}/?token={token}");
-            if let Some(name) = name.filter(|_| addr.ip().is_unspecified()) {
-                println!("prism: from other machines: http://{name}:{}/?token={token}", addr.port());
-            }
             eprintln!(
                 "warning: --bind {}: the preview is reachable from the network, over plain HTTP; \
                  anyone with the URL's token can see the scene's pictures and make it render",
                 args.bind
             );
+            say(format!(
+                "prism: previewing {scene} at http://{local}/?token={token}"
+            ));
+            if let Some(name) = name.filter(|_| addr.ip().is_unspecified()) {
+                say(format!(
+                    "prism: from other machines: http://{name}:{}/?token={token}",
+                    addr.port()
+                ));
+            }
         }
     }
     conn::serve(listener, router, connections).await;
@@ -279,13 +291,19 @@ fn cookie_token(headers: &HeaderMap, name: &str) -> Option<String> {
         .iter()
         .filter_map(|v| v.to_str().ok())
         .flat_map(|v| v.split(';'))
-        .find_map(|c| c.trim().strip_prefix(name)?.strip_prefix('=').map(str::to_string))
+        .find_map(|c| {
+            c.trim()
+                .strip_prefix(name)?
+                .strip_prefix('=')
+                .map(str::to_string)
+        })
 }
 
 fn header_token(headers: &HeaderMap) -> Option<String> {
     let value = headers.get(header::AUTHORIZATION)?.to_str().ok()?;
     let (scheme, token) = value.split_once(' ')?;
-    matches!(scheme.to_ascii_lowercase().as_str(), "token" | "bearer").then(|| token.trim().to_string())
+    matches!(scheme.to_ascii_lowercase().as_str(), "token" | "bearer")
+        .then(|| token.trim().to_string())
 }
 
 /// Every request passes here: one Host header, one of ours (DNS
@@ -305,7 +323,10 @@ async fn guard(State(app): State<App>, request: Request, next: Next) -> Response
         .authority()
         .is_some_and(|a| !a.as_str().eq_ignore_ascii_case(host))
     {
-        return refuse(StatusCode::BAD_REQUEST, "the URL and the Host header differ\n");
+        return refuse(
+            StatusCode::BAD_REQUEST,
+            "the URL and the Host header differ\n",
+        );
     }
     let name = host_name(host);
     // The address the request came in on, as an IP literal, is ours
@@ -314,7 +335,8 @@ async fn guard(State(app): State<App>, request: Request, next: Next) -> Response
     let literal = name.parse::<IpAddr>().ok();
     let ours = app.access.any_host
         || app.access.hosts.contains(&name)
-        || (literal.is_some() && literal.map(|i| i.to_canonical()) == local.map(|i| i.to_canonical()));
+        || (literal.is_some()
+            && literal.map(|i| i.to_canonical()) == local.map(|i| i.to_canonical()));
     if !ours {
         return refuse(
             StatusCode::MISDIRECTED_REQUEST,
@@ -343,7 +365,8 @@ async fn guard(State(app): State<App>, request: Request, next: Next) -> Response
         return next.run(request).await;
     };
     let from_query = query_token(&request).is_some_and(|t| same_secret(&t, token));
-    let from_cookie = cookie_token(headers, &app.access.cookie).is_some_and(|t| same_secret(&t, token));
+    let from_cookie =
+        cookie_token(headers, &app.access.cookie).is_some_and(|t| same_secret(&t, token));
     let from_header = header_token(headers).is_some_and(|t| same_secret(&t, token));
     if !(from_query || from_cookie || from_header) {
         if navigation {

@@ -59,6 +59,9 @@ pub struct Counts {
     pub cancelled: u64,
     pub waiting: usize,
     pub turned_away: u64,
+    /// Copies of the picture made for `/picture`, and alive now.
+    pub picture_copies: u64,
+    pub picture_copies_alive: usize,
 }
 
 pub struct Views {
@@ -70,6 +73,7 @@ pub struct Views {
     cancelled: AtomicU64,
     waiting: Arc<AtomicUsize>,
     turned_away: AtomicU64,
+    copies: AtomicU64,
     /// The latest picture snapshot; its lock also makes one copy at a time.
     snapshot: tokio::sync::Mutex<Option<Snapshot>>,
     snapshots_alive: Arc<AtomicUsize>,
@@ -156,6 +160,7 @@ impl Views {
             cancelled: AtomicU64::new(0),
             waiting: Arc::default(),
             turned_away: AtomicU64::new(0),
+            copies: AtomicU64::new(0),
             snapshot: tokio::sync::Mutex::new(None),
             snapshots_alive: Arc::new(AtomicUsize::new(0)),
         }
@@ -169,6 +174,8 @@ impl Views {
             cancelled: self.cancelled.load(Ordering::SeqCst),
             waiting: self.waiting.load(Ordering::SeqCst),
             turned_away: self.turned_away.load(Ordering::SeqCst),
+            picture_copies: self.copies.load(Ordering::SeqCst),
+            picture_copies_alive: self.snapshots_alive.load(Ordering::SeqCst),
         }
     }
 
@@ -186,7 +193,11 @@ impl Views {
     /// The debug view or saved image `kind` of the current scene: made
     /// once, or waited for while another request makes it. Dropping the
     /// future (the client went away) cancels it if no one else waits.
-    pub async fn get(self: &Arc<Self>, shared: &Arc<Shared>, kind: Kind) -> Result<Arc<Made>, Refused> {
+    pub async fn get(
+        self: &Arc<Self>,
+        shared: &Arc<Shared>,
+        kind: Kind,
+    ) -> Result<Arc<Made>, Refused> {
         let Some((scene, settings, generation)) = shared.last_scene() else {
             return Err(Refused::NoScene);
         };
@@ -311,6 +322,7 @@ impl Views {
             return Err(Refused::Busy);
         }
         self.snapshots_alive.fetch_add(1, Ordering::SeqCst);
+        self.copies.fetch_add(1, Ordering::SeqCst);
         let count = Arc::clone(&self.snapshots_alive);
         let shared = Arc::clone(shared);
         let copied = tokio::task::spawn_blocking(move || {
@@ -347,8 +359,8 @@ fn make(
             let region = prism::render::Region::full(settings.width, settings.height);
             let out = prism::render::aov::render_aov(scene, settings, region, aov, stop)
                 .map_err(|e| e.to_string())?;
-            let top = matches!(aov, Aov::Bounces | Aov::Feelers | Aov::Time)
-                .then(|| ramp_top(&out.film));
+            let top =
+                matches!(aov, Aov::Bounces | Aov::Feelers | Aov::Time).then(|| ramp_top(&out.film));
             let film = prism::render::aov::false_colour(&out.film, aov);
             let path = dir.path().join("view.png");
             prism::image_io::write_film(&film, &path).map_err(|e| e.to_string())?;

@@ -286,13 +286,7 @@ pub fn run(shared: Arc<Shared>) {
             files.insert(target);
         }
         match &loaded {
-            Ok(scene) => files.extend(
-                scene
-                    .inventory
-                    .files_read
-                    .iter()
-                    .map(|f| resolve(&f.path)),
-            ),
+            Ok(scene) => files.extend(scene.inventory.files_read.iter().map(|f| resolve(&f.path))),
             Err(_) => files.extend(lock(&watched).iter().cloned()),
         }
         // Editors save by writing a new file and renaming it over the old:
