@@ -41,6 +41,9 @@ pub struct Made {
     pub top: Option<f64>,
 }
 
+/// The outcome of a job stopped before it finished.
+const STOPPED: &str = "stopped";
+
 type Outcome = Option<Result<Arc<Made>, String>>;
 
 struct Job {
@@ -204,8 +207,8 @@ impl Views {
         let slot;
         let job = {
             let mut jobs = self.jobs.lock().unwrap_or_else(|p| p.into_inner());
-            // Views of older scenes are of no use any more.
-            jobs.retain(|(g, _), _| *g == generation);
+            // A cancelled one, and views of older scenes, are of no use.
+            jobs.retain(|(g, _), j| *g == generation && !j.cancel.load(Ordering::SeqCst));
             let finished = jobs
                 .get(&(generation, kind))
                 .and_then(|j| j.done.borrow().clone());
@@ -244,6 +247,8 @@ impl Views {
         drop(slot);
         match outcome {
             Some(Ok(made)) => Ok(made),
+            // Stopped (its scene changed): the client may ask again.
+            Some(Err(e)) if e == STOPPED => Err(Refused::Busy),
             Some(Err(e)) => Err(Refused::Failed(e)),
             None => Err(Refused::Busy),
         }
@@ -276,7 +281,7 @@ impl Views {
         let Some(permit) = permit else {
             self.cancelled.fetch_add(1, Ordering::SeqCst);
             forget();
-            let _ = job.done.send(Some(Err("cancelled".into())));
+            let _ = job.done.send(Some(Err(STOPPED.into())));
             return;
         };
         self.started.fetch_add(1, Ordering::SeqCst);
@@ -295,15 +300,18 @@ impl Views {
         };
         drop(permit);
         self.running.fetch_sub(1, Ordering::SeqCst);
+        let stopped = job.cancel.load(Ordering::SeqCst)
+            || shared.scene_generation.load(Ordering::SeqCst) != generation;
         let outcome = match made {
             Ok(Ok(made)) => Ok(Arc::new(made)),
+            Ok(Err(_)) if stopped => Err(STOPPED.to_string()),
             Ok(Err(e)) => Err(e),
             Err(e) => Err(e.to_string()),
         };
         if outcome.is_err() {
             // Not kept: a later request tries again.
             forget();
-            if job.cancel.load(Ordering::SeqCst) {
+            if stopped {
                 self.cancelled.fetch_add(1, Ordering::SeqCst);
             }
         }
