@@ -5,7 +5,9 @@ save shows its located error and keeps the picture, a fix brings it back.
 The page (issue 14, item 16): the header names the scene; heat-ramp views
 have a legend; back to "picture", the view goes and exposure works; a
 chosen view follows an edit; a page refused by the 16-stream cap says why
-and connects once there is room.
+and connects once there is room. Network mode: without the token the page
+asks for it; with it, the page works, the token leaves the address bar and
+a reload works from the cookie.
 Keeps screenshots in target/preview-screens/ (and the README's in
 docs/images/preview.png when asked). Run by scripts/test-preview-browser.sh.
 
@@ -290,7 +292,28 @@ try:
     wait("window.prism.phase === 'done' && window.prism.notice === ''",
          "the page to connect once there is room")
     compare(canvas_rgb(), reference("connected"), "the page that waited for room")
+
+    # Network mode: the token in the printed URL, then in a cookie.
+    network = subprocess.Popen([PRISM, "serve", SCENE, "--port", "0", "--bind", "0.0.0.0"],
+                               stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    token_url = re.search(r"http://\S+", network.stdout.readline()).group(0)
+    bare = token_url.split("?")[0]
+    driver.get(bare)
+    if "needs the token" not in driver.find_element(By.TAG_NAME, "body").text:
+        fail("without the token, the page does not ask for it")
+    driver.get(token_url)
+    wait("window.prism && window.prism.phase === 'done'", "the page opened with the token")
+    if driver.current_url != bare:
+        fail(f"the token stays in the address bar: {driver.current_url}")
+    driver.refresh()
+    wait("window.prism && window.prism.phase === 'done' && window.prism.loading === null",
+         "the page reloaded with the cookie")
+    time.sleep(0.3)  # the redraw (requestAnimationFrame)
+    compare(canvas_rgb(), reference("network"), "network mode, reloaded from the cookie")
+    print("ok: network mode: the token is asked for, kept in a cookie and out of the address bar")
 finally:
     driver.quit()
     server.kill()
+    if "network" in globals():
+        network.kill()
 print("ok: the preview passes in Chromium")
