@@ -670,3 +670,29 @@ fn a_page_beyond_the_stream_cap_is_told_why() {
     drop(pages);
     stats_until(addr, "pages closed", |s| s["pages"] == 0);
 }
+
+#[test]
+fn a_client_that_stops_reading_is_dropped() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.toml");
+    // A picture larger than what the sockets buffer (17 MB).
+    let big = SCENE.replace(
+        "width = 96\nheight = 72\nspp = 4",
+        "width = 1600\nheight = 900\nspp = 1",
+    );
+    std::fs::write(&scene, big).unwrap();
+    let server = serve(&scene);
+    let addr = server.addr.as_str();
+    Events::open(addr).until("done");
+    let mut stalled = TcpStream::connect(addr).unwrap();
+    write!(stalled, "GET /picture HTTP/1.1\r\nHost: {addr}\r\n\r\n").unwrap();
+    // It reads nothing: the server gives up on it (and its copy).
+    stats_until(addr, "the stalled connection closed", |s| {
+        s["connections"] == 1
+    });
+    let mut got = Vec::new();
+    let _ = stalled.read_to_end(&mut got);
+    assert!(got.len() < 1600 * 900 * 12, "{}", got.len());
+    // Others are served meanwhile and after.
+    assert_eq!(get(addr, "/picture", addr).1.len(), 1600 * 900 * 12);
+}

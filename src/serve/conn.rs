@@ -1,7 +1,7 @@
 //! The preview's own accept loop around hyper, for what `axum::serve` does
 //! not do: a cap on open connections, a header-read timeout, and closing
 //! connections that have no request in progress (idle keep-alive, partial
-//! headers, a client that stopped reading). At the cap, the connection idle
+//! headers) or whose client stopped reading the response. At the cap, the connection idle
 //! the longest makes room, so a real request is answered even while
 //! hundreds of idle sockets are held open.
 
@@ -32,6 +32,9 @@ pub const HEADER_TIMEOUT: Duration = Duration::from_secs(10);
 /// A connection with no request in progress (and no response being
 /// written) for this long is closed.
 pub const IDLE_TIMEOUT: Duration = Duration::from_secs(10);
+/// A response the client has not read any of for this long is abandoned
+/// (event streams send a comment every 15 s, so a live page never stalls).
+pub const STALL_TIMEOUT: Duration = Duration::from_secs(30);
 
 /// The local address a request came in on (the Host check of network mode).
 #[derive(Clone, Copy, Debug)]
@@ -40,6 +43,8 @@ pub struct LocalAddr(pub SocketAddr);
 struct Conn {
     /// Requests in progress, responses included until their body is sent.
     active: AtomicUsize,
+    /// Response bodies being sent.
+    sending: AtomicUsize,
     /// The last time a request started or a response made progress.
     last: Mutex<Instant>,
     close: Notify,
@@ -48,6 +53,16 @@ struct Conn {
 impl Conn {
     fn touch(&self) {
         *self.last.lock().unwrap_or_else(|p| p.into_inner()) = Instant::now();
+    }
+
+    /// Whether to close it: idle too long, or a response stalled.
+    fn expired(&self) -> bool {
+        let last = *self.last.lock().unwrap_or_else(|p| p.into_inner());
+        if self.active.load(Ordering::SeqCst) == 0 {
+            last.elapsed() > IDLE_TIMEOUT
+        } else {
+            self.sending.load(Ordering::SeqCst) > 0 && last.elapsed() > STALL_TIMEOUT
+        }
     }
 
     fn idle_since(&self) -> Option<Instant> {
@@ -119,6 +134,20 @@ struct Tracked {
     busy: Busy,
 }
 
+impl Tracked {
+    fn new(inner: Body, busy: Busy) -> Tracked {
+        busy.0.sending.fetch_add(1, Ordering::SeqCst);
+        busy.0.touch();
+        Tracked { inner, busy }
+    }
+}
+
+impl Drop for Tracked {
+    fn drop(&mut self) {
+        self.busy.0.sending.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
 impl hyper::body::Body for Tracked {
     type Data = Bytes;
     type Error = axum::Error;
@@ -165,6 +194,7 @@ pub async fn serve(listener: TcpListener, router: Router, connections: Arc<Conne
         };
         let conn = Arc::new(Conn {
             active: AtomicUsize::new(0),
+            sending: AtomicUsize::new(0),
             last: Mutex::new(Instant::now()),
             close: Notify::new(),
         });
@@ -185,7 +215,7 @@ pub async fn serve(listener: TcpListener, router: Router, connections: Arc<Conne
                             Err(never) => match never {},
                         };
                         Ok::<_, Infallible>(
-                            response.map(|inner| Body::new(Tracked { inner, busy })),
+                            response.map(|inner| Body::new(Tracked::new(inner, busy))),
                         )
                     }
                 })
@@ -201,7 +231,7 @@ pub async fn serve(listener: TcpListener, router: Router, connections: Arc<Conne
                     _ = &mut connection => break,
                     _ = conn.close.notified() => break,
                     _ = tokio::time::sleep(Duration::from_secs(1)) => {
-                        if conn.idle_since().is_some_and(|t| t.elapsed() > IDLE_TIMEOUT) {
+                        if conn.expired() {
                             break;
                         }
                     }
