@@ -440,7 +440,7 @@ async fn events(State(app): State<App>) -> Response {
         app.clients.fetch_sub(1, Ordering::SeqCst);
         return (
             StatusCode::SERVICE_UNAVAILABLE,
-            "too many preview pages open\n",
+            format!("too many preview pages open ({MAX_CLIENTS} at most): close one\n"),
         )
             .into_response();
     }
