@@ -540,7 +540,14 @@ fn cross_site_requests_are_refused() {
     assert_eq!(request(addr, "/aov.png?name=depth", &own).0, 200);
     let link =
         format!("Host: {addr}\r\nSec-Fetch-Site: cross-site\r\nSec-Fetch-Mode: navigate\r\n");
-    assert_eq!(request(addr, "/", &link).0, 200);
+    let (status, head, _) = request(addr, "/", &link);
+    assert_eq!(status, 200);
+    assert_eq!(header(&head, "x-frame-options"), Some("deny"));
+    // But not into another site's frame.
+    let framed = format!(
+        "Host: {addr}\r\nSec-Fetch-Site: cross-site\r\nSec-Fetch-Mode: navigate\r\nSec-Fetch-Dest: iframe\r\n"
+    );
+    assert_eq!(request(addr, "/", &framed).0, 403);
     let typed = format!("Host: {addr}\r\nSec-Fetch-Site: none\r\n");
     assert_eq!(request(addr, "/save.png", &typed).0, 200);
     // DNS rebinding: one Host header, and ours.

@@ -343,13 +343,17 @@ async fn guard(State(app): State<App>, request: Request, next: Next) -> Response
             format!("this preview does not answer to {name}; see --allow-host\n"),
         );
     }
-    // Cross-site: a page elsewhere may link to the preview (a navigation
-    // to the page itself) but not make it work (debug views, pictures).
+    // Cross-site: a page elsewhere may link to the preview (a top-level
+    // navigation to the page itself) but not frame it or make it work
+    // (debug views, pictures).
     let navigation = request.method() == Method::GET
         && request.uri().path() == "/"
         && headers
             .get("sec-fetch-mode")
-            .is_none_or(|m| m.as_bytes() == b"navigate");
+            .is_none_or(|m| m.as_bytes() == b"navigate")
+        && headers
+            .get("sec-fetch-dest")
+            .is_none_or(|d| d.as_bytes() == b"document");
     let site = headers.get("sec-fetch-site").map(HeaderValue::as_bytes);
     let cross_site = site.is_some_and(|s| s != b"same-origin" && s != b"none");
     let foreign_origin = headers
@@ -409,7 +413,20 @@ fn typed(content_type: &'static str, body: impl IntoResponse) -> Response {
 }
 
 async fn page() -> Response {
-    typed("text/html; charset=utf-8", include_str!("page/index.html"))
+    let mut r = typed("text/html; charset=utf-8", include_str!("page/index.html"));
+    // Not in another site's frame (clickjacking); the token in the URL is
+    // not sent on as a referrer.
+    let h = r.headers_mut();
+    h.insert(
+        header::CONTENT_SECURITY_POLICY,
+        HeaderValue::from_static("frame-ancestors 'none'"),
+    );
+    h.insert(header::X_FRAME_OPTIONS, HeaderValue::from_static("DENY"));
+    h.insert(
+        header::REFERRER_POLICY,
+        HeaderValue::from_static("no-referrer"),
+    );
+    r
 }
 
 async fn script() -> Response {
