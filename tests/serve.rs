@@ -576,7 +576,7 @@ fn network_mode_needs_the_token_and_keeps_it_in_a_cookie() {
             "--bind",
             "0.0.0.0",
             "--allow-host",
-            "preview.example",
+            "Preview.Example:443",
         ],
         None,
         Stdio::from(std::fs::File::create(&log).unwrap()),

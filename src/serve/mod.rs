@@ -153,7 +153,13 @@ async fn serve(args: &ServeArgs, options: prism::scene::LoadOptions) -> ExitCode
     let mut hosts: Vec<String> = args
         .allow_host
         .iter()
-        .map(|h| h.trim().to_ascii_lowercase())
+        .map(|h| {
+            if h.trim() == "*" {
+                "*".into()
+            } else {
+                host_name(h)
+            }
+        })
         .collect();
     if addr.ip().is_loopback() || addr.ip().is_unspecified() {
         hosts.push("localhost".into());
