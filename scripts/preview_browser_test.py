@@ -2,6 +2,12 @@
 the canvas shows what `prism render` writes, a click on the glass ball
 shows the tree `prism explain --json` gives, a save moves the ball, a broken
 save shows its located error and keeps the picture, a fix brings it back.
+The page (issue 14, item 16): the header names the scene; heat-ramp views
+have a legend; back to "picture", the view goes and exposure works; a
+chosen view follows an edit; a page refused by the 16-stream cap says why
+and connects once there is room. Network mode: without the token the page
+asks for it; with it, the page works, the token leaves the address bar and
+a reload works from the cookie.
 Keeps screenshots in target/preview-screens/ (and the README's in
 docs/images/preview.png when asked). Run by scripts/test-preview-browser.sh.
 
@@ -11,15 +17,18 @@ Usage: python preview_browser_test.py PRISM SCENE_DIR SCREENS_DIR [README_SHOT]
 import json
 import os
 import re
+import socket
 import subprocess
 import sys
 import time
+import urllib.request
 
 from selenium import webdriver
 from selenium.webdriver.chrome.options import Options
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.by import By
+from selenium.webdriver.support.ui import Select
 
 PRISM, WORK, SCREENS = sys.argv[1:4]
 README_SHOT = sys.argv[4] if len(sys.argv) > 4 else None
@@ -98,6 +107,29 @@ def compare(shown, ref, what):
           f"({len(diffs)} channel values off by one of {len(want)})")
 
 
+def choose_view(name):
+    Select(driver.find_element(By.ID, "view-select")).select_by_visible_text(name or "picture")
+    if name:
+        wait(f"document.getElementById('aov').dataset.view === '{name}' && "
+             "!document.getElementById('aov').hidden && "
+             "document.getElementById('aov').complete && "
+             "document.getElementById('aov').naturalWidth > 0", f"the {name} view")
+
+
+def on_top():
+    """The id of what is seen at the middle of the picture."""
+    return driver.execute_script("""
+        const r = document.getElementById('picture').getBoundingClientRect();
+        return document.elementFromPoint(r.left + r.width / 2, r.top + r.height / 2).id;""")
+
+
+def set_exposure(ev):
+    driver.execute_script(f"""
+        const e = document.getElementById('exposure');
+        e.value = '{ev}'; e.dispatchEvent(new Event('input'));""")
+    time.sleep(0.3)  # the redraw (requestAnimationFrame)
+
+
 try:
     driver.get(url)
     generation = wait_done(0)
@@ -152,6 +184,44 @@ try:
     if README_SHOT:
         driver.save_screenshot(README_SHOT)
 
+    # The header names the scene.
+    name = driver.find_element(By.ID, "scene").text
+    if name != "whitted.toml" or "whitted.toml" not in driver.title:
+        fail(f"the header shows {name!r}, the title {driver.title!r}")
+    print(f"ok: the header and title name the scene ({driver.title!r})")
+
+    # Heat-ramp views have a legend: black to white, 0 to the value shown white.
+    choose_view("feelers")
+    legend = driver.find_element(By.ID, "legend")
+    top = driver.find_element(By.ID, "legend-top").text
+    if not legend.is_displayed() or not re.match(r"[0-9.e+]+ or more", top):
+        fail(f"no legend for the feelers view ({top!r})")
+    if on_top() != "aov":
+        fail(f"the feelers view is not shown over the picture ({on_top()!r})")
+    driver.save_screenshot(os.path.join(SCREENS, "2b-feelers.png"))
+    choose_view("normal")
+    if legend.is_displayed():
+        fail("the normal view has a heat-ramp legend")
+    print(f"ok: the feelers view has a legend (0 to {top}); the normal view none")
+
+    # Back to the picture: the view goes, and exposure changes what is seen.
+    choose_view("")
+    wait("getComputedStyle(document.getElementById('aov')).display === 'none'", "the view to go")
+    if on_top() != "picture":
+        fail(f"back to the picture, {on_top()!r} is on top")
+    set_exposure(2)
+    brighter = canvas_rgb()
+    set_exposure(0)
+    if brighter == canvas_rgb() or on_top() != "picture":
+        fail("exposure does not change the picture after a debug view")
+    compare(canvas_rgb(), first, "back to the picture at 0 EV")
+    print("ok: after a debug view, picture is on top again and exposure works")
+
+    # A chosen view follows the next edit (checked after the ball moves).
+    choose_view("depth")
+    view_generation = int(driver.execute_script(
+        "return document.getElementById('aov').dataset.generation;"))
+
     # Move the glass ball: the picture follows the save.
     text = open(SCENE).read()
     moved = text.replace("center = [0.7, 1.0, 0.6]", "center = [-0.3, 1.0, 0.9]")
@@ -170,6 +240,11 @@ try:
         fail(f"only {changed} channel values changed after moving the ball")
     compare(after, reference("moved"), "after moving the ball")
     print(f"ok: save to first coarse picture: {latency * 1000:.0f} ms")
+    wait(f"document.getElementById('aov').dataset.view === 'depth' && "
+         f"+document.getElementById('aov').dataset.generation > {view_generation}",
+         "the depth view to follow the edit")
+    print("ok: the depth view follows the edit")
+    choose_view("")
     driver.save_screenshot(os.path.join(SCREENS, "3-moved.png"))
 
     # A broken save: the located error, the picture kept.
@@ -191,7 +266,54 @@ try:
     wait("document.getElementById('errors').hidden", "the error to go")
     compare(canvas_rgb(), reference("fixed"), "after the fix")
     driver.save_screenshot(os.path.join(SCREENS, "5-fixed.png"))
+
+    # A page beyond the 16-stream cap says why and retries.
+    addr = re.match(r"http://([^/]+)/", url).group(1)
+    host, port = addr.rsplit(":", 1)
+    pages = json.load(urllib.request.urlopen(f"http://{addr}/stats"))["pages"]
+    held = []
+    for _ in range(16 - pages):
+        s = socket.create_connection((host, int(port)))
+        s.sendall(f"GET /events HTTP/1.1\r\nHost: {addr}\r\n\r\n".encode())
+        if b" 200 " not in s.recv(4096):
+            fail("a stream below the cap was refused")
+        held.append(s)
+    driver.switch_to.new_window("tab")
+    driver.get(url)
+    wait("window.prism.notice.includes('too many') && window.prism.notice.includes('retrying')",
+         "the page to say why it cannot connect")
+    notice = driver.find_element(By.ID, "notice")
+    if not notice.is_displayed():
+        fail("the refusal is not shown")
+    print(f"ok: a page beyond the cap says {notice.text!r}")
+    driver.save_screenshot(os.path.join(SCREENS, "6-refused.png"))
+    for s in held:
+        s.close()
+    wait("window.prism.phase === 'done' && window.prism.notice === ''",
+         "the page to connect once there is room")
+    compare(canvas_rgb(), reference("connected"), "the page that waited for room")
+
+    # Network mode: the token in the printed URL, then in a cookie.
+    network = subprocess.Popen([PRISM, "serve", SCENE, "--port", "0", "--bind", "0.0.0.0"],
+                               stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    token_url = re.search(r"http://\S+", network.stdout.readline()).group(0)
+    bare = token_url.split("?")[0]
+    driver.get(bare)
+    if "needs the token" not in driver.find_element(By.TAG_NAME, "body").text:
+        fail("without the token, the page does not ask for it")
+    driver.get(token_url)
+    wait("window.prism && window.prism.phase === 'done'", "the page opened with the token")
+    if driver.current_url != bare:
+        fail(f"the token stays in the address bar: {driver.current_url}")
+    driver.refresh()
+    wait("window.prism && window.prism.phase === 'done' && window.prism.loading === null",
+         "the page reloaded with the cookie")
+    time.sleep(0.3)  # the redraw (requestAnimationFrame)
+    compare(canvas_rgb(), reference("network"), "network mode, reloaded from the cookie")
+    print("ok: network mode: the token is asked for, kept in a cookie and out of the address bar")
 finally:
     driver.quit()
     server.kill()
+    if "network" in globals():
+        network.kill()
 print("ok: the preview passes in Chromium")

@@ -7,7 +7,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 fail() { echo "FAIL: $*" >&2; exit 1; }
-if grep -rn -E "target-cpu|target-feature" .cargo Cargo.toml 2>/dev/null; then
+if grep -rn -E "target-cpu|target-feature" .cargo Cargo.toml cli/Cargo.toml 2>/dev/null; then
     fail "a build setting asks for CPU-specific code"
 fi
 case "${RUSTFLAGS:-}" in *target-cpu*|*target-feature*) fail "RUSTFLAGS asks for CPU-specific code";; esac

@@ -2,7 +2,11 @@
 //! Host check, the event stream (a coarse picture first, then tiles, then
 //! done), a save that cancels the render under way and restarts it, a
 //! broken scene reported as located errors while the last good picture
-//! stays, and the saved image equal to `prism render`'s.
+//! stays, and the saved image equal to `prism render`'s. Then its limits
+//! (issue 14, items 10-15): abandoned debug views cancelled and finished
+//! ones reused, idle and partial connections closed while a real request
+//! is answered, the picture as shared binary, cross-site requests refused,
+//! network mode behind a token, and a scene followed however it is saved.
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
@@ -23,10 +27,34 @@ impl Drop for Server {
 }
 
 fn serve(scene: &Path) -> Server {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_prism"))
-        .args(["serve", scene.to_str().unwrap(), "--port", "0"])
+    serve_with(&[scene.to_str().unwrap()], None, Stdio::null()).0
+}
+
+/// `prism serve ARGS --port 0` in `dir`: the server and the first line it
+/// printed.
+fn serve_with(args: &[&str], dir: Option<&Path>, stderr: Stdio) -> (Server, String) {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_prism"));
+    command.arg("serve").args(args).args(["--port", "0"]);
+    spawn(command, dir, stderr)
+}
+
+/// `prism serve SCENE --port 0` allowed `files` open files (`ulimit -n`).
+fn serve_limited(scene: &Path, files: u32) -> Server {
+    let mut command = Command::new("sh");
+    command
+        .args(["-c", &format!("ulimit -n {files} && exec \"$0\" \"$@\"")])
+        .arg(env!("CARGO_BIN_EXE_prism"))
+        .args(["serve", scene.to_str().unwrap(), "--port", "0"]);
+    spawn(command, None, Stdio::null()).0
+}
+
+fn spawn(mut command: Command, dir: Option<&Path>, stderr: Stdio) -> (Server, String) {
+    if let Some(dir) = dir {
+        command.current_dir(dir);
+    }
+    let mut child = command
         .stdout(Stdio::piped())
-        .stderr(Stdio::null())
+        .stderr(stderr)
         .spawn()
         .unwrap();
     let mut line = String::new();
@@ -39,15 +67,22 @@ fn serve(scene: &Path) -> Server {
         .and_then(|r| r.split('/').next())
         .unwrap_or_else(|| panic!("no URL in {line:?}"))
         .to_string();
-    Server { child, addr }
+    (Server { child, addr }, line)
 }
 
 /// A GET with the given Host header: (status, body).
 fn get(addr: &str, path: &str, host: &str) -> (u16, Vec<u8>) {
+    let (status, _, body) = request(addr, path, &format!("Host: {host}\r\n"));
+    (status, body)
+}
+
+/// A GET with the given header lines: (status, head, body).
+fn request(addr: &str, path: &str, headers: &str) -> (u16, String, Vec<u8>) {
     let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
     write!(
         s,
-        "GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
+        "GET {path} HTTP/1.1\r\n{headers}Connection: close\r\n\r\n"
     )
     .unwrap();
     let mut all = Vec::new();
@@ -62,7 +97,47 @@ fn get(addr: &str, path: &str, host: &str) -> (u16, Vec<u8>) {
     {
         body = dechunk(&body);
     }
-    (status, body)
+    (status, head.to_ascii_lowercase(), body)
+}
+
+/// The value of a response header (the head in lower case).
+fn header<'a>(head: &'a str, name: &str) -> Option<&'a str> {
+    head.lines()
+        .find_map(|l| l.strip_prefix(name)?.strip_prefix(':'))
+        .map(str::trim)
+}
+
+/// The server's counters.
+fn stats(addr: &str) -> serde_json::Value {
+    let (status, body) = get(addr, "/stats", addr);
+    assert_eq!(status, 200);
+    serde_json::from_slice(&body).unwrap()
+}
+
+/// Waits until the scene has loaded (views are asked for after that).
+fn loaded(addr: &str) {
+    let end = Instant::now() + Duration::from_secs(60);
+    while get(addr, "/explain?x=0&y=0", addr).0 == 409 {
+        assert!(Instant::now() < end, "the scene does not load");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Waits (a minute at most) until the counters satisfy `ok`.
+fn stats_until(
+    addr: &str,
+    what: &str,
+    ok: impl Fn(&serde_json::Value) -> bool,
+) -> serde_json::Value {
+    let end = Instant::now() + Duration::from_secs(60);
+    loop {
+        let s = stats(addr);
+        if ok(&s) {
+            return s;
+        }
+        assert!(Instant::now() < end, "no {what}: {s}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
 }
 
 fn dechunk(mut b: &[u8]) -> Vec<u8> {
@@ -196,6 +271,8 @@ fn the_preview_streams_follows_saves_and_reports_errors() {
     let mut events = Events::open(addr);
     let (_, done) = events.until("done");
     assert!(done["summary"].as_str().unwrap().contains("rays"));
+    // The page shows the scene's name.
+    assert_eq!(done["scene"], "scene.toml");
     let reference = render_png(dir.path(), scene.to_str().unwrap());
     assert!(
         get(addr, "/save.png", addr).1 == reference,
@@ -231,9 +308,10 @@ fn the_preview_streams_follows_saves_and_reports_errors() {
     );
     assert!(e["message"].as_str().unwrap().contains("radius"), "{error}");
     assert!(get(addr, "/save.png", addr).1 == reference2);
-    let (_, picture) = get(addr, "/picture", addr);
-    let picture: serde_json::Value = serde_json::from_slice(&picture).unwrap();
-    assert_eq!(picture["width"], 96);
+    let (status, head, picture) = request(addr, "/picture", &format!("Host: {addr}\r\n"));
+    assert_eq!(status, 200);
+    assert_eq!(header(&head, "x-prism-width"), Some("96"));
+    assert_eq!(picture.len(), 96 * 72 * 12);
 
     // Fixed again: the picture returns.
     std::fs::write(&scene, &moved).unwrap();
@@ -279,4 +357,349 @@ fn a_save_stops_the_render_under_way_quickly() {
         latency < Duration::from_millis(1500),
         "{latency:?} from save to the new coarse pass"
     );
+}
+
+/// A scene whose debug views take a long time (tens of seconds).
+fn slow_scene(dir: &Path) -> std::path::PathBuf {
+    let scene = dir.join("slow.toml");
+    let slow = SCENE
+        .replace(
+            "width = 96\nheight = 72\nspp = 4",
+            "width = 1600\nheight = 1200\nspp = 64",
+        )
+        .replace("samples = 16", "samples = 64");
+    std::fs::write(&scene, slow).unwrap();
+    scene
+}
+
+/// Sends a GET and leaves the socket open, unread.
+fn send(addr: &str, path: &str) -> TcpStream {
+    let mut s = TcpStream::connect(addr).unwrap();
+    write!(s, "GET {path} HTTP/1.1\r\nHost: {addr}\r\n\r\n").unwrap();
+    s
+}
+
+#[test]
+fn abandoned_debug_views_stop_and_finished_ones_are_reused() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = serve(&slow_scene(dir.path()));
+    let addr = server.addr.as_str();
+    loaded(addr);
+    // 40 clients ask for two views: each is rendered once, 2 at most at
+    // once, 32 requests wait and the others are turned away.
+    let clients: Vec<TcpStream> = (0..40)
+        .map(|i| {
+            send(
+                addr,
+                &format!("/aov.png?name={}&t={i}", ["time", "feelers"][i % 2]),
+            )
+        })
+        .collect();
+    let s = stats_until(addr, "40 requests seen", |s| {
+        s["renders"]["waiting"].as_u64().unwrap() + s["renders"]["turned_away"].as_u64().unwrap()
+            >= 40
+    });
+    assert!(s["renders"]["running"].as_u64().unwrap() <= 2, "{s}");
+    assert!(s["renders"]["turned_away"].as_u64().unwrap() >= 8, "{s}");
+    // They give up: the renders stop.
+    drop(clients);
+    let s = stats_until(addr, "cancelled renders", |s| {
+        s["renders"]["running"] == 0 && s["renders"]["queued"] == 0 && s["renders"]["waiting"] == 0
+    });
+    assert!(s["renders"]["cancelled"].as_u64().unwrap() >= 2, "{s}");
+    assert!(s["renders"]["started"].as_u64().unwrap() <= 2, "{s}");
+    drop(server);
+
+    // A finished view is reused for its scene's generation.
+    let scene = dir.path().join("scene.toml");
+    std::fs::write(&scene, SCENE).unwrap();
+    let server = serve(&scene);
+    let addr = server.addr.as_str();
+    loaded(addr);
+    let (status, head, first) =
+        request(addr, "/aov.png?name=feelers", &format!("Host: {addr}\r\n"));
+    assert_eq!(status, 200);
+    // The heat ramp's white, for the page's legend.
+    assert!(header(&head, "x-prism-ramp-top").is_some(), "{head}");
+    let again = get(addr, "/aov.png?name=feelers&t=2", addr);
+    assert!(again.0 == 200 && again.1 == first);
+    assert_eq!(stats(addr)["renders"]["started"], 1);
+    // A saved picture is made once too.
+    Events::open(addr).until("done");
+    let png = get(addr, "/save.png", addr);
+    assert!(png.0 == 200 && get(addr, "/save.png", addr).1 == png.1);
+    assert_eq!(stats(addr)["renders"]["started"], 2);
+}
+
+/// Whether the server closed the connection (within a minute).
+fn closed(s: &mut TcpStream) -> bool {
+    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+    let mut rest = Vec::new();
+    match s.read_to_end(&mut rest) {
+        Ok(_) => true,
+        Err(e) => e.kind() == std::io::ErrorKind::ConnectionReset,
+    }
+}
+
+#[test]
+fn idle_and_partial_connections_make_room_for_real_requests() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.toml");
+    std::fs::write(&scene, SCENE).unwrap();
+    // The common limit of 1024 open files, scaled down.
+    let server = serve_limited(&scene, 256);
+    let addr = server.addr.as_str();
+    // More idle sockets than it may open, some with half a header.
+    let mut idle: Vec<TcpStream> = (0..300)
+        .map(|_| TcpStream::connect(addr).unwrap())
+        .collect();
+    for s in idle.iter_mut().skip(150).step_by(10) {
+        write!(s, "GET / HTTP/1.1\r\nHost: {addr}\r\n").unwrap();
+    }
+    // A real request is still answered.
+    let (status, _) = get(addr, "/", addr);
+    assert_eq!(status, 200);
+    assert!(stats(addr)["connections"].as_u64().unwrap() <= 128);
+    // The oldest idle ones were closed to make room.
+    assert!(closed(&mut idle[0]));
+    drop(idle);
+    // One that never finishes its header is closed (header timeout).
+    let mut slow = TcpStream::connect(addr).unwrap();
+    write!(slow, "GET / HTTP/1.1\r\nHost: {addr}\r\nX-Slow: ").unwrap();
+    assert!(closed(&mut slow));
+    // An idle keep-alive connection is closed too.
+    let mut kept = TcpStream::connect(addr).unwrap();
+    write!(kept, "GET /app.css HTTP/1.1\r\nHost: {addr}\r\n\r\n").unwrap();
+    kept.set_read_timeout(Some(Duration::from_secs(60)))
+        .unwrap();
+    let mut all = Vec::new();
+    assert!(kept.read_to_end(&mut all).is_ok());
+    assert!(String::from_utf8_lossy(&all).starts_with("HTTP/1.1 200"));
+}
+
+#[test]
+fn the_picture_is_binary_and_shared() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.toml");
+    std::fs::write(&scene, SCENE).unwrap();
+    let server = serve(&scene);
+    let addr = server.addr.as_str();
+    Events::open(addr).until("done");
+    let host = format!("Host: {addr}\r\n");
+    let (status, head, first) = request(addr, "/picture", &host);
+    assert_eq!(status, 200);
+    assert_eq!(
+        header(&head, "content-type"),
+        Some("application/octet-stream")
+    );
+    assert_eq!(header(&head, "x-prism-final"), Some("true"));
+    assert_eq!(first.len(), 96 * 72 * 3 * 4);
+    // The f32 pixels are the render's (the PNG's 8 bits, within rounding).
+    let pixel = |i: usize| f32::from_le_bytes(first[4 * i..4 * i + 4].try_into().unwrap());
+    assert!((0..96 * 72 * 3).all(|i| pixel(i).is_finite() && pixel(i) >= 0.0));
+    // Unread requests share one copy.
+    let unread: Vec<TcpStream> = (0..50).map(|_| send(addr, "/picture")).collect();
+    for _ in 0..5 {
+        assert!(request(addr, "/picture", &host).2 == first);
+    }
+    let s = stats(addr);
+    assert_eq!(s["renders"]["picture_copies"], 1, "{s}");
+    drop(unread);
+}
+
+#[test]
+fn cross_site_requests_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.toml");
+    std::fs::write(&scene, SCENE).unwrap();
+    let server = serve(&scene);
+    let addr = server.addr.as_str();
+    Events::open(addr).until("done");
+    for path in [
+        "/aov.png?name=time",
+        "/picture",
+        "/events",
+        "/explain?x=1&y=1",
+        "/save.png",
+        "/save.exr",
+        "/stats",
+    ] {
+        for marked in [
+            "Sec-Fetch-Site: cross-site\r\n",
+            "Sec-Fetch-Site: same-site\r\n",
+            "Origin: http://evil.example\r\n",
+            "Origin: null\r\n",
+        ] {
+            let (status, _, _) = request(addr, path, &format!("Host: {addr}\r\n{marked}"));
+            assert_eq!(status, 403, "{path} {marked}");
+        }
+    }
+    assert_eq!(stats(addr)["renders"]["started"], 0);
+    // The page's own requests, and a link to the page, are served.
+    let own = format!("Host: {addr}\r\nSec-Fetch-Site: same-origin\r\nOrigin: http://{addr}\r\n");
+    assert_eq!(request(addr, "/aov.png?name=depth", &own).0, 200);
+    let link =
+        format!("Host: {addr}\r\nSec-Fetch-Site: cross-site\r\nSec-Fetch-Mode: navigate\r\n");
+    let (status, head, _) = request(addr, "/", &link);
+    assert_eq!(status, 200);
+    assert_eq!(header(&head, "x-frame-options"), Some("deny"));
+    // But not into another site's frame.
+    let framed = format!(
+        "Host: {addr}\r\nSec-Fetch-Site: cross-site\r\nSec-Fetch-Mode: navigate\r\nSec-Fetch-Dest: iframe\r\n"
+    );
+    assert_eq!(request(addr, "/", &framed).0, 403);
+    let typed = format!("Host: {addr}\r\nSec-Fetch-Site: none\r\n");
+    assert_eq!(request(addr, "/save.png", &typed).0, 200);
+    // DNS rebinding: one Host header, and ours.
+    assert_eq!(
+        request(
+            addr,
+            "/",
+            &format!("Host: {addr}\r\nHost: evil.example\r\n")
+        )
+        .0,
+        400
+    );
+    assert_eq!(request(addr, "/", "").0, 400);
+    assert_eq!(get(addr, "/", "evil.example").0, 421);
+}
+
+#[test]
+fn network_mode_needs_the_token_and_keeps_it_in_a_cookie() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.toml");
+    std::fs::write(&scene, SCENE).unwrap();
+    let log = dir.path().join("stderr.txt");
+    let (server, line) = serve_with(
+        &[
+            scene.to_str().unwrap(),
+            "--bind",
+            "0.0.0.0",
+            "--allow-host",
+            "Preview.Example:443",
+        ],
+        None,
+        Stdio::from(std::fs::File::create(&log).unwrap()),
+    );
+    let addr = server.addr.as_str();
+    let port = addr.rsplit(':').next().unwrap();
+    let token = line.trim().split("?token=").nth(1).unwrap().to_string();
+    assert!(token.len() >= 32, "{line}");
+    let warning = std::fs::read_to_string(&log).unwrap();
+    assert!(
+        warning.contains("warning") && warning.contains("network"),
+        "{warning}"
+    );
+
+    let host = format!("Host: {addr}\r\n");
+    // Without the token, or with a wrong one: refused.
+    assert_eq!(request(addr, "/", &host).0, 403);
+    assert_eq!(request(addr, "/picture", &host).0, 403);
+    assert_eq!(request(addr, "/?token=0123", &host).0, 403);
+    // With it: served, and kept in a cookie for the page's requests.
+    let (status, head, _) = request(addr, &format!("/?token={token}"), &host);
+    assert_eq!(status, 200);
+    let cookie = header(&head, "set-cookie").unwrap().to_string();
+    assert!(
+        cookie.starts_with(&format!("prism-token-{port}={token}")),
+        "{cookie}"
+    );
+    assert!(cookie.contains("httponly") && cookie.contains("samesite=strict"));
+    let cookie = format!("Cookie: other=1; prism-token-{port}={token}\r\n");
+    let with_cookie = format!("{host}{cookie}");
+    assert_eq!(request(addr, "/picture", &with_cookie).0, 200);
+    let with_header = format!("{host}Authorization: token {token}\r\n");
+    assert_eq!(request(addr, "/stats", &with_header).0, 200);
+    // The names of the bound addresses and --allow-host ones are answered.
+    for name in [
+        format!("localhost:{port}"),
+        format!("preview.example:{port}"),
+    ] {
+        assert_eq!(
+            request(addr, "/", &format!("Host: {name}\r\n{cookie}")).0,
+            200,
+            "{name}"
+        );
+    }
+    let evil = format!("Host: evil.example:{port}\r\nCookie: prism-token-{port}={token}\r\n");
+    assert_eq!(request(addr, "/", &evil).0, 421);
+    assert_eq!(
+        request(addr, "/", &format!("{with_cookie}Host: {addr}\r\n")).0,
+        400
+    );
+}
+
+#[test]
+fn a_relative_scene_is_followed_however_it_is_saved() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("scenes")).unwrap();
+    let scene = dir.path().join("scenes/scene.toml");
+    std::fs::write(&scene, SCENE).unwrap();
+    // As the docs show it: a path relative to the working folder.
+    let (server, _) = serve_with(&["scenes/scene.toml"], Some(dir.path()), Stdio::null());
+    let mut events = Events::open(&server.addr);
+    let (_, done) = events.until("done");
+    let mut generation = done["generation"].as_u64().unwrap();
+    let mut next = |events: &mut Events, phase: &str| {
+        let (_, s) = events.until(phase);
+        let g = s["generation"].as_u64().unwrap();
+        assert!(g > generation, "{s}");
+        generation = g;
+    };
+    // Missing for a moment, then back (an editor's save).
+    std::fs::remove_file(&scene).unwrap();
+    next(&mut events, "error");
+    std::fs::write(&scene, SCENE.replace("[0, 1, 0]", "[1, 1, 0]")).unwrap();
+    next(&mut events, "done");
+    // Written elsewhere and renamed over it.
+    let other = dir.path().join("scenes/.scene.toml.swp");
+    std::fs::write(&other, SCENE.replace("[0, 1, 0]", "[-1, 1, 0]")).unwrap();
+    std::fs::rename(&other, &scene).unwrap();
+    next(&mut events, "done");
+    // Removed and written again while nothing renders.
+    std::fs::remove_file(&scene).unwrap();
+    std::thread::sleep(Duration::from_millis(50));
+    std::fs::write(&scene, SCENE).unwrap();
+    next(&mut events, "done");
+}
+
+#[test]
+fn a_page_beyond_the_stream_cap_is_told_why() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.toml");
+    std::fs::write(&scene, SCENE).unwrap();
+    let server = serve(&scene);
+    let addr = server.addr.as_str();
+    let pages: Vec<Events> = (0..16).map(|_| Events::open(addr)).collect();
+    let (status, body) = get(addr, "/events", addr);
+    assert_eq!(status, 503);
+    assert!(String::from_utf8_lossy(&body).contains("too many preview pages"));
+    drop(pages);
+    stats_until(addr, "pages closed", |s| s["pages"] == 0);
+}
+
+#[test]
+fn a_client_that_stops_reading_is_dropped() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.toml");
+    // A picture larger than what the sockets buffer (17 MB).
+    let big = SCENE.replace(
+        "width = 96\nheight = 72\nspp = 4",
+        "width = 1600\nheight = 900\nspp = 1",
+    );
+    std::fs::write(&scene, big).unwrap();
+    let server = serve(&scene);
+    let addr = server.addr.as_str();
+    Events::open(addr).until("done");
+    let mut stalled = TcpStream::connect(addr).unwrap();
+    write!(stalled, "GET /picture HTTP/1.1\r\nHost: {addr}\r\n\r\n").unwrap();
+    // It reads nothing: the server gives up on it (and its copy).
+    stats_until(addr, "the stalled connection closed", |s| {
+        s["connections"] == 1
+    });
+    let mut got = Vec::new();
+    let _ = stalled.read_to_end(&mut got);
+    assert!(got.len() < 1600 * 900 * 12, "{}", got.len());
+    // Others are served meanwhile and after.
+    assert_eq!(get(addr, "/picture", addr).1.len(), 1600 * 900 * 12);
 }

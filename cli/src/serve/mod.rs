@@ -6,22 +6,28 @@
 //! the library knows nothing of HTTP.
 //!
 //! Safe by default: it binds 127.0.0.1; a request whose Host header is not
-//! the address it serves is refused (421), against DNS rebinding; it serves
-//! its embedded page and the images it rendered, no file from disk; pages
-//! are limited to `MAX_CLIENTS` event streams.
+//! a name of the address it serves is refused (421), against DNS
+//! rebinding; requests marked cross-site are refused (403); it serves its
+//! embedded page and the images it rendered, no file from disk. Work done
+//! on request is bounded (`views`), and so are connections (`conn`).
+//! Bound to another address (network mode), it also requires a random
+//! token, given in the printed URL and kept in a cookie, as Jupyter does.
 
+mod conn;
+mod views;
 mod worker;
 
 use std::convert::Infallible;
-use std::net::SocketAddr;
+use std::net::{IpAddr, SocketAddr};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use axum::Router;
+use axum::body::Body;
 use axum::extract::{Query, Request, State};
-use axum::http::{HeaderValue, StatusCode, header};
+use axum::http::{HeaderMap, HeaderValue, Method, StatusCode, header};
 use axum::middleware::{self, Next};
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
@@ -29,9 +35,12 @@ use axum::routing::get;
 use clap::Args;
 use futures_util::stream::{self, StreamExt};
 use serde::Deserialize;
+use tokio::sync::Semaphore;
 use tokio::sync::broadcast::error::RecvError;
 
-use crate::commands::{BAD_INPUT, LoadArgs};
+use crate::args::{BAD_INPUT, LoadArgs};
+use conn::{Connections, LocalAddr};
+use views::{Kind, Refused, Views};
 use worker::Shared;
 
 /// Event streams (open pages) served at once.
@@ -44,10 +53,14 @@ pub struct ServeArgs {
     /// Port (0: any free port).
     #[arg(long, default_value_t = 8080)]
     port: u16,
-    /// Address to listen on; anything but 127.0.0.1 or ::1 exposes the
-    /// preview (and the scene's pictures) to the network.
+    /// Address to listen on; anything but a loopback address (127.0.0.1,
+    /// ::1) exposes the preview to the network, behind a random token.
     #[arg(long, default_value = "127.0.0.1")]
-    bind: std::net::IpAddr,
+    bind: IpAddr,
+    /// Also accept requests for this host name (repeatable; `*`: any),
+    /// e.g. a DNS name of this machine or a reverse proxy's.
+    #[arg(long = "allow-host", value_name = "NAME")]
+    allow_host: Vec<String>,
     /// Also stream the tiles to the tev image viewer at HOST:PORT.
     #[arg(long, value_name = "HOST:PORT")]
     display_server: Option<String>,
@@ -55,12 +68,25 @@ pub struct ServeArgs {
     load: LoadArgs,
 }
 
+/// Who may ask: the Host names served, and the token in network mode.
+struct Access {
+    /// Host names (lower case, no port) answered, besides the address a
+    /// request came in on.
+    hosts: Vec<String>,
+    any_host: bool,
+    /// Network mode: the token, and the cookie that keeps it.
+    token: Option<String>,
+    cookie: String,
+}
+
 #[derive(Clone)]
 struct App {
     shared: Arc<Shared>,
-    /// Host header values this server answers to.
-    hosts: Arc<Vec<String>>,
+    views: Arc<Views>,
+    access: Arc<Access>,
+    connections: Arc<Connections>,
     clients: Arc<AtomicUsize>,
+    explains: Arc<Semaphore>,
 }
 
 pub fn run(args: &ServeArgs) -> ExitCode {
@@ -77,6 +103,8 @@ pub fn run(args: &ServeArgs) -> ExitCode {
     }
     let runtime = match tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)
+        // Blocking work is bounded by the views' permits; this bounds threads.
+        .max_blocking_threads(16)
         .enable_all()
         .build()
     {
@@ -87,6 +115,22 @@ pub fn run(args: &ServeArgs) -> ExitCode {
         }
     };
     runtime.block_on(serve(args, options))
+}
+
+/// A random token: 24 bytes from the operating system, in hex.
+fn new_token() -> Result<String, String> {
+    let mut bytes = [0u8; 24];
+    getrandom::fill(&mut bytes).map_err(|e| e.to_string())?;
+    Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// This machine's name, to accept it as a Host.
+fn hostname() -> Option<String> {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .ok()
+        .or_else(|| std::env::var("HOSTNAME").ok())
+        .map(|h| h.trim().to_ascii_lowercase())
+        .filter(|h| !h.is_empty())
 }
 
 async fn serve(args: &ServeArgs, options: prism::scene::LoadOptions) -> ExitCode {
@@ -105,10 +149,36 @@ async fn serve(args: &ServeArgs, options: prism::scene::LoadOptions) -> ExitCode
             return ExitCode::FAILURE;
         }
     };
-    let mut hosts = vec![addr.to_string()];
-    if addr.ip().is_loopback() {
-        hosts.push(format!("localhost:{}", addr.port()));
+    let network = !addr.ip().is_loopback();
+    let mut hosts: Vec<String> = args
+        .allow_host
+        .iter()
+        .map(|h| {
+            if h.trim() == "*" {
+                "*".into()
+            } else {
+                host_name(h)
+            }
+        })
+        .collect();
+    if addr.ip().is_loopback() || addr.ip().is_unspecified() {
+        hosts.push("localhost".into());
     }
+    let name = hostname();
+    if network {
+        hosts.extend(name.clone());
+    }
+    let token = if network {
+        match new_token() {
+            Ok(t) => Some(t),
+            Err(e) => {
+                eprintln!("error: cannot make a token: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
+    } else {
+        None
+    };
     let tev = match &args.display_server {
         None => None,
         Some(address) => match crate::tev::Tev::connect(address, &args.scene.display().to_string())
@@ -127,9 +197,18 @@ async fn serve(args: &ServeArgs, options: prism::scene::LoadOptions) -> ExitCode
     }
     let app = App {
         shared,
-        hosts: Arc::new(hosts),
+        views: Arc::new(Views::new()),
+        access: Arc::new(Access {
+            any_host: hosts.iter().any(|h| h == "*"),
+            hosts,
+            token: token.clone(),
+            cookie: format!("prism-token-{}", addr.port()),
+        }),
+        connections: Arc::default(),
         clients: Arc::new(AtomicUsize::new(0)),
+        explains: Arc::new(Semaphore::new(views::MAX_RENDERS)),
     };
+    let connections = Arc::clone(&app.connections);
     let router = Router::new()
         .route("/", get(page))
         .route("/app.js", get(script))
@@ -140,36 +219,195 @@ async fn serve(args: &ServeArgs, options: prism::scene::LoadOptions) -> ExitCode
         .route("/save.exr", get(save_exr))
         .route("/explain", get(explain))
         .route("/aov.png", get(aov))
-        .layer(middleware::from_fn_with_state(app.clone(), check_host))
+        .route("/stats", get(stats))
+        .layer(middleware::from_fn_with_state(app.clone(), guard))
         .with_state(app);
-    println!(
-        "prism: previewing {} at http://{addr}/",
-        args.scene.display()
-    );
-    if let Err(e) = axum::serve(listener, router).await {
-        eprintln!("error: the server stopped: {e}");
-        return ExitCode::FAILURE;
+    let scene = args.scene.display();
+    // Not println!: a closed stdout (a script that read the URL and went)
+    // must not stop the server.
+    let say = |line: String| {
+        use std::io::Write;
+        let mut out = std::io::stdout().lock();
+        let _ = writeln!(out, "{line}").and_then(|()| out.flush());
+    };
+    match &token {
+        None => say(format!("prism: previewing {scene} at http://{addr}/")),
+        Some(token) => {
+            // Unspecified: reachable on loopback too, printed first.
+            let local = if addr.ip().is_unspecified() {
+                SocketAddr::new(IpAddr::from([127, 0, 0, 1]), addr.port())
+            } else {
+                addr
+            };
+            eprintln!(
+                "warning: --bind {}: the preview is reachable from the network, over plain HTTP; \
+                 anyone with the URL's token can see the scene's pictures and make it render",
+                args.bind
+            );
+            say(format!(
+                "prism: previewing {scene} at http://{local}/?token={token}"
+            ));
+            if let Some(name) = name.filter(|_| addr.ip().is_unspecified()) {
+                say(format!(
+                    "prism: from other machines: http://{name}:{}/?token={token}",
+                    addr.port()
+                ));
+            }
+        }
     }
+    conn::serve(listener, router, connections).await;
     ExitCode::SUCCESS
 }
 
-/// DNS rebinding: a page from another origin that resolves its own name
-/// to 127.0.0.1 sends its own Host header; only ours is served.
-async fn check_host(State(app): State<App>, request: Request, next: Next) -> Response {
-    let host = request
-        .headers()
-        .get(header::HOST)
-        .and_then(|h| h.to_str().ok())
-        .unwrap_or_default();
-    if !app.hosts.iter().any(|h| h == host) {
-        return (
-            StatusCode::MISDIRECTED_REQUEST,
-            format!("this preview answers to {} only\n", app.hosts.join(" or ")),
-        )
-            .into_response();
-    }
-    next.run(request).await
+fn refuse(status: StatusCode, message: impl Into<String>) -> Response {
+    let mut r = (status, message.into()).into_response();
+    r.headers_mut()
+        .insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    r
 }
+
+/// The host part of a Host header, lower case, without the port or the
+/// brackets of an IPv6 address.
+fn host_name(host: &str) -> String {
+    let host = host.trim().to_ascii_lowercase();
+    if let Some(rest) = host.strip_prefix('[') {
+        return rest.split(']').next().unwrap_or_default().to_string();
+    }
+    match host.rsplit_once(':') {
+        Some((name, port)) if port.chars().all(|c| c.is_ascii_digit()) => name.to_string(),
+        _ => host,
+    }
+}
+
+/// Equal in time independent of where they differ.
+fn same_secret(a: &str, b: &str) -> bool {
+    a.len() == b.len() && a.bytes().zip(b.bytes()).fold(0, |d, (x, y)| d | (x ^ y)) == 0
+}
+
+fn query_token(request: &Request) -> Option<String> {
+    request.uri().query()?.split('&').find_map(|pair| {
+        let value = pair.strip_prefix("token=")?;
+        urlencoding::decode(value).ok().map(|v| v.into_owned())
+    })
+}
+
+fn cookie_token(headers: &HeaderMap, name: &str) -> Option<String> {
+    headers
+        .get_all(header::COOKIE)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .flat_map(|v| v.split(';'))
+        .find_map(|c| {
+            c.trim()
+                .strip_prefix(name)?
+                .strip_prefix('=')
+                .map(str::to_string)
+        })
+}
+
+fn header_token(headers: &HeaderMap) -> Option<String> {
+    let value = headers.get(header::AUTHORIZATION)?.to_str().ok()?;
+    let (scheme, token) = value.split_once(' ')?;
+    matches!(scheme.to_ascii_lowercase().as_str(), "token" | "bearer")
+        .then(|| token.trim().to_string())
+}
+
+/// Every request passes here: one Host header, one of ours (DNS
+/// rebinding); nothing a page of another site asked for; and in network
+/// mode the token.
+async fn guard(State(app): State<App>, request: Request, next: Next) -> Response {
+    let headers = request.headers();
+    let mut all = headers.get_all(header::HOST).iter();
+    let (Some(host), None) = (all.next(), all.next()) else {
+        return refuse(StatusCode::BAD_REQUEST, "one Host header is needed\n");
+    };
+    let Ok(host) = host.to_str() else {
+        return refuse(StatusCode::BAD_REQUEST, "the Host header is not text\n");
+    };
+    if request
+        .uri()
+        .authority()
+        .is_some_and(|a| !a.as_str().eq_ignore_ascii_case(host))
+    {
+        return refuse(
+            StatusCode::BAD_REQUEST,
+            "the URL and the Host header differ\n",
+        );
+    }
+    let name = host_name(host);
+    // The address the request came in on, as an IP literal, is ours
+    // whichever interface it is: a rebinding attack needs a name.
+    let local = request.extensions().get::<LocalAddr>().map(|l| l.0.ip());
+    let literal = name.parse::<IpAddr>().ok();
+    let ours = app.access.any_host
+        || app.access.hosts.contains(&name)
+        || (literal.is_some()
+            && literal.map(|i| i.to_canonical()) == local.map(|i| i.to_canonical()));
+    if !ours {
+        return refuse(
+            StatusCode::MISDIRECTED_REQUEST,
+            format!("this preview does not answer to {name}; see --allow-host\n"),
+        );
+    }
+    // Cross-site: a page elsewhere may link to the preview (a top-level
+    // navigation to the page itself) but not frame it or make it work
+    // (debug views, pictures).
+    let navigation = request.method() == Method::GET
+        && request.uri().path() == "/"
+        && headers
+            .get("sec-fetch-mode")
+            .is_none_or(|m| m.as_bytes() == b"navigate")
+        && headers
+            .get("sec-fetch-dest")
+            .is_none_or(|d| d.as_bytes() == b"document");
+    let site = headers.get("sec-fetch-site").map(HeaderValue::as_bytes);
+    let cross_site = site.is_some_and(|s| s != b"same-origin" && s != b"none");
+    let foreign_origin = headers
+        .get(header::ORIGIN)
+        .is_some_and(|o| o.to_str().ok() != Some(format!("http://{host}").as_str()));
+    if (cross_site || foreign_origin) && !navigation {
+        return refuse(
+            StatusCode::FORBIDDEN,
+            "cross-site requests are refused: open the preview's own page\n",
+        );
+    }
+    let Some(token) = &app.access.token else {
+        return next.run(request).await;
+    };
+    let from_query = query_token(&request).is_some_and(|t| same_secret(&t, token));
+    let from_cookie =
+        cookie_token(headers, &app.access.cookie).is_some_and(|t| same_secret(&t, token));
+    let from_header = header_token(headers).is_some_and(|t| same_secret(&t, token));
+    if !(from_query || from_cookie || from_header) {
+        if navigation {
+            let mut r = typed("text/html; charset=utf-8", TOKEN_PAGE);
+            *r.status_mut() = StatusCode::FORBIDDEN;
+            return r;
+        }
+        return refuse(
+            StatusCode::FORBIDDEN,
+            "this preview needs its token: open the URL prism serve printed\n",
+        );
+    }
+    let mut response = next.run(request).await;
+    if from_query && !from_cookie {
+        // Kept for the page's own requests (SameSite: not sent by others).
+        let cookie = format!(
+            "{}={token}; Path=/; HttpOnly; SameSite=Strict",
+            app.access.cookie
+        );
+        if let Ok(v) = HeaderValue::from_str(&cookie) {
+            response.headers_mut().append(header::SET_COOKIE, v);
+        }
+    }
+    response
+}
+
+/// Asks for the token when the page is opened without it.
+const TOKEN_PAGE: &str = "<!doctype html><meta charset=utf-8><title>Prism preview: token</title>\
+<p>This preview needs the token in the URL that <code>prism serve</code> printed.</p>\
+<form method=get action=/><label>Token <input name=token autocomplete=off size=50></label> \
+<button>Open</button></form>\n";
 
 fn typed(content_type: &'static str, body: impl IntoResponse) -> Response {
     let mut r = body.into_response();
@@ -181,7 +419,20 @@ fn typed(content_type: &'static str, body: impl IntoResponse) -> Response {
 }
 
 async fn page() -> Response {
-    typed("text/html; charset=utf-8", include_str!("page/index.html"))
+    let mut r = typed("text/html; charset=utf-8", include_str!("page/index.html"));
+    // Not in another site's frame (clickjacking); the token in the URL is
+    // not sent on as a referrer.
+    let h = r.headers_mut();
+    h.insert(
+        header::CONTENT_SECURITY_POLICY,
+        HeaderValue::from_static("frame-ancestors 'none'"),
+    );
+    h.insert(header::X_FRAME_OPTIONS, HeaderValue::from_static("DENY"));
+    h.insert(
+        header::REFERRER_POLICY,
+        HeaderValue::from_static("no-referrer"),
+    );
+    r
 }
 
 async fn script() -> Response {
@@ -195,6 +446,16 @@ async fn style() -> Response {
     typed("text/css; charset=utf-8", include_str!("page/app.css"))
 }
 
+/// Counts for scripts and tests: connections, pages, on-demand renders.
+async fn stats(State(app): State<App>) -> Response {
+    let json = serde_json::json!({
+        "connections": app.connections.count(),
+        "pages": app.clients.load(Ordering::SeqCst),
+        "renders": app.views.counts(),
+    });
+    typed("application/json", json.to_string())
+}
+
 /// Server-sent events: the status, then the current picture, then every
 /// change as it happens.
 async fn events(State(app): State<App>) -> Response {
@@ -202,7 +463,7 @@ async fn events(State(app): State<App>) -> Response {
         app.clients.fetch_sub(1, Ordering::SeqCst);
         return (
             StatusCode::SERVICE_UNAVAILABLE,
-            "too many preview pages open\n",
+            format!("too many preview pages open ({MAX_CLIENTS} at most): close one\n"),
         )
             .into_response();
     }
@@ -242,66 +503,83 @@ impl Drop for ClientGuard {
     }
 }
 
-/// The current picture, as the events carry it (JSON, f32 RGB base64).
+fn refused(why: Refused) -> Response {
+    match why {
+        Refused::NoScene => refuse(StatusCode::CONFLICT, "no scene has loaded yet\n"),
+        Refused::Busy => {
+            let mut r = refuse(StatusCode::SERVICE_UNAVAILABLE, "busy; try again\n");
+            r.headers_mut()
+                .insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
+            r
+        }
+        Refused::Failed(e) if e.contains("not finished") => {
+            refuse(StatusCode::CONFLICT, format!("{e}\n"))
+        }
+        Refused::Failed(e) => refuse(StatusCode::INTERNAL_SERVER_ERROR, format!("{e}\n")),
+    }
+}
+
+fn numeric(r: &mut Response, name: &'static str, value: impl ToString) {
+    if let Ok(v) = HeaderValue::from_str(&value.to_string()) {
+        r.headers_mut().insert(name, v);
+    }
+}
+
+/// The current picture: little-endian f32 RGB, row-major, its size and
+/// generation in headers. Copied once per change and shared by every
+/// request; sent in pieces, so a client that stops reading is noticed.
 async fn picture(State(app): State<App>) -> Response {
-    let p = app
-        .shared
-        .picture
-        .lock()
-        .map(|p| p.clone())
-        .unwrap_or_default();
-    let generation = app.shared.status.lock().map(|s| s.generation).unwrap_or(0);
-    typed(
-        "application/json",
-        format!(
-            r#"{{"generation":{generation},"width":{},"height":{},"final":{},"data":"{}"}}"#,
-            p.width,
-            p.height,
-            p.film.is_some(),
-            worker::encode_pixels(p.pixels.iter().copied())
-        ),
-    )
+    let snapshot = match app.views.picture(&app.shared).await {
+        Ok(s) => s,
+        Err(why) => return refused(why),
+    };
+    const PIECE: usize = 1 << 20;
+    let bytes = snapshot.bytes.clone();
+    let length = bytes.len();
+    let pieces = (0..length)
+        .step_by(PIECE)
+        .map(move |at| Ok::<_, Infallible>(bytes.slice(at..(at + PIECE).min(length))));
+    let mut r = typed(
+        "application/octet-stream",
+        Body::from_stream(stream::iter(pieces)),
+    );
+    numeric(&mut r, "content-length", length);
+    numeric(&mut r, "x-prism-generation", snapshot.generation);
+    numeric(&mut r, "x-prism-width", snapshot.width);
+    numeric(&mut r, "x-prism-height", snapshot.height);
+    numeric(&mut r, "x-prism-final", snapshot.finished);
+    r
 }
 
 /// The finished picture, written as `prism render` writes it.
-fn save(app: &App, ext: &str, content_type: &'static str) -> Response {
-    let film = app.shared.picture.lock().ok().and_then(|p| p.film.clone());
-    let Some(film) = film else {
-        return (StatusCode::CONFLICT, "the render is not finished yet\n").into_response();
+async fn save(app: &App, kind: Kind) -> Response {
+    let finished = app.shared.picture.lock().is_ok_and(|p| p.film.is_some());
+    if !finished {
+        return refuse(StatusCode::CONFLICT, "the render is not finished yet\n");
+    }
+    let (ext, content_type) = match kind {
+        Kind::Exr => ("exr", "image/x-exr"),
+        _ => ("png", "image/png"),
     };
-    let scene = app.shared.scene.lock().ok().and_then(|s| s.clone());
-    let provenance =
-        scene.map(|(scene, settings)| prism::image_io::Provenance::of(&scene, &settings));
-    let written = tempfile::tempdir().and_then(|dir| {
-        let path = dir.path().join(format!("render.{ext}"));
-        prism::image_io::write_film_unless(
-            &film,
-            &path,
-            provenance.as_ref(),
-            &std::sync::atomic::AtomicBool::new(false),
-        )
-        .map_err(std::io::Error::other)?;
-        std::fs::read(path)
-    });
-    match written {
-        Ok(bytes) => {
-            let mut r = typed(content_type, bytes);
+    match app.views.get(&app.shared, kind).await {
+        Ok(made) => {
+            let mut r = typed(content_type, made.bytes.clone());
             let disposition = format!("attachment; filename=\"render.{ext}\"");
             if let Ok(v) = HeaderValue::from_str(&disposition) {
                 r.headers_mut().insert(header::CONTENT_DISPOSITION, v);
             }
             r
         }
-        Err(e) => (StatusCode::INTERNAL_SERVER_ERROR, e.to_string()).into_response(),
+        Err(why) => refused(why),
     }
 }
 
 async fn save_png(State(app): State<App>) -> Response {
-    save(&app, "png", "image/png")
+    save(&app, Kind::Png).await
 }
 
 async fn save_exr(State(app): State<App>) -> Response {
-    save(&app, "exr", "image/x-exr")
+    save(&app, Kind::Exr).await
 }
 
 #[derive(Deserialize)]
@@ -315,8 +593,15 @@ struct PixelQuery {
 /// `prism explain --json` for a pixel of the last good scene, with each
 /// ray's segment projected onto the picture (`screen`: x0, y0, x1, y1).
 async fn explain(State(app): State<App>, Query(q): Query<PixelQuery>) -> Response {
-    let Some((scene, settings)) = app.shared.scene.lock().ok().and_then(|s| s.clone()) else {
-        return (StatusCode::CONFLICT, "no scene has loaded yet\n").into_response();
+    let Some((scene, settings, _)) = app.shared.last_scene() else {
+        return refuse(StatusCode::CONFLICT, "no scene has loaded yet\n");
+    };
+    // A few at once; some more wait (and go if their client goes).
+    let Some(_slot) = app.views.wait_slot() else {
+        return refused(Refused::Busy);
+    };
+    let Ok(_permit) = app.explains.acquire().await else {
+        return refused(Refused::Busy);
     };
     let result = tokio::task::spawn_blocking(move || {
         let e = prism::render::explain::explain(&scene, &settings, q.x, q.y, q.sample)?;
@@ -362,29 +647,23 @@ struct AovQuery {
     name: String,
 }
 
-/// A debug view of the last good scene, in false colour.
+/// A debug view of the last good scene, in false colour; for the heat
+/// ramps, the value shown white in `x-prism-ramp-top`.
 async fn aov(State(app): State<App>, Query(q): Query<AovQuery>) -> Response {
     let aov: prism::render::aov::Aov = match q.name.parse() {
         Ok(a) => a,
-        Err(e) => return (StatusCode::BAD_REQUEST, e).into_response(),
+        Err(e) => return refuse(StatusCode::BAD_REQUEST, e),
     };
-    let Some((scene, settings)) = app.shared.scene.lock().ok().and_then(|s| s.clone()) else {
-        return (StatusCode::CONFLICT, "no scene has loaded yet\n").into_response();
-    };
-    let result = tokio::task::spawn_blocking(move || {
-        let region = prism::render::Region::full(settings.width, settings.height);
-        let out = prism::render::aov::render_aov(&scene, &settings, region, aov, &())
-            .map_err(|e| e.to_string())?;
-        let film = prism::render::aov::false_colour(&out.film, aov);
-        let dir = tempfile::tempdir().map_err(|e| e.to_string())?;
-        let path = dir.path().join("aov.png");
-        prism::image_io::write_film(&film, &path).map_err(|e| e.to_string())?;
-        std::fs::read(path).map_err(|e| e.to_string())
-    })
-    .await;
-    match result {
-        Ok(Ok(bytes)) => typed("image/png", bytes),
-        Ok(Err(message)) => (StatusCode::BAD_REQUEST, message).into_response(),
-        Err(e) => (StatusCode::INTERNAL_SERVER_ERROR, e.to_string()).into_response(),
+    let generation = app.shared.scene_generation.load(Ordering::SeqCst);
+    match app.views.get(&app.shared, Kind::View(aov.name())).await {
+        Ok(made) => {
+            let mut r = typed("image/png", made.bytes.clone());
+            numeric(&mut r, "x-prism-generation", generation);
+            if let Some(top) = made.top {
+                numeric(&mut r, "x-prism-ramp-top", top);
+            }
+            r
+        }
+        Err(why) => refused(why),
     }
 }

@@ -37,6 +37,8 @@ pub struct Problem {
 /// What the page is told about the render.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct Status {
+    /// The scene's file name.
+    pub scene: String,
     /// Bumped on every (re)load.
     pub generation: u64,
     /// `loading`, `coarse`, `preview` (full resolution, 1 sample),
@@ -67,6 +69,10 @@ pub struct Status {
 /// The picture the page shows: linear f32 RGB over the whole frame.
 #[derive(Clone, Debug, Default)]
 pub struct Picture {
+    /// The generation it shows.
+    pub generation: u64,
+    /// Bumped on every change of the pixels.
+    pub version: u64,
     /// Width.
     pub width: u32,
     /// Height.
@@ -79,8 +85,10 @@ pub struct Picture {
 
 /// State shared by the render thread and the HTTP handlers.
 pub struct Shared {
-    /// The scene file served.
+    /// The scene file served, as given.
     pub scene_path: PathBuf,
+    /// The same, absolute, with its folder's real path: what is watched.
+    scene_abs: PathBuf,
     /// How it is loaded.
     pub options: LoadOptions,
     /// Incremented on every file change: a render whose generation is
@@ -91,8 +99,10 @@ pub struct Shared {
     pub status: Mutex<Status>,
     /// The current picture.
     pub picture: Mutex<Picture>,
-    /// The last scene that loaded, with its settings.
-    pub scene: Mutex<Option<(Arc<Scene>, RenderSettings)>>,
+    /// The last scene that loaded, with its settings and generation.
+    pub scene: Mutex<Option<(Arc<Scene>, RenderSettings, u64)>>,
+    /// The generation of the last scene that loaded.
+    pub scene_generation: AtomicU64,
     /// Events for the pages: (name, JSON).
     pub events: broadcast::Sender<(&'static str, Arc<String>)>,
     /// The tev viewer the tiles also go to.
@@ -102,14 +112,24 @@ pub struct Shared {
 impl Shared {
     /// State for serving `scene_path`.
     pub fn new(scene_path: PathBuf, options: LoadOptions, tev: Option<Tev>) -> Arc<Shared> {
+        let scene_abs = resolve(&scene_path);
+        let name = scene_path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
         Arc::new(Shared {
             scene_path,
+            scene_abs,
             options,
             generation: AtomicU64::new(1),
             wake: (Mutex::new(()), Condvar::new()),
-            status: Mutex::new(Status::default()),
+            status: Mutex::new(Status {
+                scene: name,
+                ..Status::default()
+            }),
             picture: Mutex::new(Picture::default()),
             scene: Mutex::new(None),
+            scene_generation: AtomicU64::new(0),
             events: broadcast::channel(4096).0,
             tev,
         })
@@ -120,6 +140,16 @@ impl Shared {
         self.generation.fetch_add(1, Ordering::SeqCst);
         let _lock = self.wake.0.lock();
         self.wake.1.notify_all();
+    }
+
+    /// The last scene that loaded, its settings and generation.
+    pub fn last_scene(&self) -> Option<(Arc<Scene>, RenderSettings, u64)> {
+        lock(&self.scene).clone()
+    }
+
+    /// The picture's version now.
+    pub fn picture_version(&self) -> u64 {
+        lock(&self.picture).version
     }
 
     fn send(&self, name: &'static str, json: String) {
@@ -173,6 +203,7 @@ impl RenderObserver for PassObserver<'_> {
         }
         {
             let mut picture = lock(&self.shared.picture);
+            picture.version += 1;
             let width = picture.width as usize;
             for (i, p) in pixels.iter().enumerate() {
                 let (x, y) = (
@@ -229,7 +260,7 @@ pub fn run(shared: Arc<Shared>) {
                 return;
             }
             let watched = lock(&watched);
-            if event.paths.iter().any(|p| watched.contains(&canonical(p))) {
+            if event.paths.iter().any(|p| watched.contains(&resolve(p))) {
                 shared.changed();
             }
         }
@@ -248,14 +279,19 @@ pub fn run(shared: Arc<Shared>) {
             s.first_picture_s = None;
         });
         let loaded = Scene::load_with(&shared.scene_path, &shared.options);
-        // Watch the scene file always, and what the last good load read.
-        let mut files = BTreeSet::from([canonical(&shared.scene_path)]);
+        // Watch the scene file always (by its absolute path, and the file
+        // a link points to), and what the last good load read.
+        let mut files = BTreeSet::from([shared.scene_abs.clone()]);
+        if let Ok(target) = shared.scene_abs.canonicalize() {
+            files.insert(target);
+        }
         match &loaded {
-            Ok(scene) => files.extend(scene.inventory.files_read.iter().map(|f| f.path.clone())),
+            Ok(scene) => files.extend(scene.inventory.files_read.iter().map(|f| resolve(&f.path))),
             Err(_) => files.extend(lock(&watched).iter().cloned()),
         }
         // Editors save by writing a new file and renaming it over the old:
-        // watch the folders, and filter by path.
+        // watch the folders, and filter by path. Watched again on every
+        // load, in case a folder was replaced.
         let new_dirs: BTreeSet<PathBuf> = files
             .iter()
             .filter_map(|f| f.parent().map(Path::to_path_buf))
@@ -264,12 +300,12 @@ pub fn run(shared: Arc<Shared>) {
             for d in dirs.difference(&new_dirs) {
                 let _ = w.unwatch(d);
             }
-            for d in new_dirs.difference(&dirs) {
+            for d in &new_dirs {
                 let _ = w.watch(d, RecursiveMode::NonRecursive);
             }
         }
         dirs = new_dirs;
-        *lock(&watched) = files;
+        *lock(&watched) = files.clone();
         match loaded {
             Err(e) => {
                 let errors = problems(&e, &shared.scene_path);
@@ -281,12 +317,16 @@ pub fn run(shared: Arc<Shared>) {
             Ok(scene) => {
                 let scene = Arc::new(scene);
                 let settings = scene.settings;
-                *lock(&shared.scene) = Some((Arc::clone(&scene), settings));
+                *lock(&shared.scene) = Some((Arc::clone(&scene), settings, generation));
+                shared.scene_generation.store(generation, Ordering::SeqCst);
                 shared.update(|s| s.errors.clear());
                 render_passes(&shared, &scene, &settings, generation, changed_at);
             }
         }
-        // Wait for the next change.
+        // Wait for the next change. The files are also looked at twice a
+        // second, in case the watcher missed one (a folder replaced, a
+        // file system without events).
+        let seen = signatures(&files);
         let mut guard = lock(&shared.wake.0);
         while shared.generation.load(Ordering::SeqCst) == generation {
             guard = shared
@@ -295,6 +335,10 @@ pub fn run(shared: Arc<Shared>) {
                 .wait_timeout(guard, Duration::from_millis(500))
                 .map(|(g, _)| g)
                 .unwrap_or_else(|p| p.into_inner().0);
+            if shared.generation.load(Ordering::SeqCst) == generation && signatures(&files) != seen
+            {
+                shared.generation.fetch_add(1, Ordering::SeqCst);
+            }
         }
         drop(guard);
         // Let an editor finish writing (several events per save).
@@ -302,8 +346,35 @@ pub fn run(shared: Arc<Shared>) {
     }
 }
 
-fn canonical(p: &Path) -> PathBuf {
-    p.canonicalize().unwrap_or_else(|_| p.to_path_buf())
+/// What tells a file's versions apart: its size, time and inode (None:
+/// missing).
+type Signature = Option<(u64, Option<std::time::SystemTime>, u64)>;
+
+fn signatures(files: &BTreeSet<PathBuf>) -> Vec<Signature> {
+    files
+        .iter()
+        .map(|f| {
+            let m = std::fs::metadata(f).ok()?;
+            #[cfg(unix)]
+            let inode = std::os::unix::fs::MetadataExt::ino(&m);
+            #[cfg(not(unix))]
+            let inode = 0;
+            Some((m.len(), m.modified().ok(), inode))
+        })
+        .collect()
+}
+
+/// A path as the watcher reports it: absolute, its folder's real path
+/// and its own name, whether the file exists now or not.
+pub fn resolve(p: &Path) -> PathBuf {
+    let absolute = std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    match (absolute.parent(), absolute.file_name()) {
+        (Some(dir), Some(name)) => dir
+            .canonicalize()
+            .map(|d| d.join(name))
+            .unwrap_or_else(|_| absolute.clone()),
+        _ => absolute,
+    }
 }
 
 /// The load error as located problems.
@@ -360,6 +431,8 @@ fn render_passes(
     {
         // Upscale into the picture, so late pages see it too.
         let mut picture = lock(&shared.picture);
+        picture.generation = generation;
+        picture.version += 1;
         picture.width = width;
         picture.height = height;
         picture.film = None;

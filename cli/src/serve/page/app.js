@@ -6,6 +6,7 @@
 const state = {
   generation: 0, width: 0, height: 0, radiance: null, phase: "connecting",
   exposure: 0, status: null, explanation: null, dirty: false, coarseAt: null,
+  view: "", viewGeneration: 0, viewTop: null, notice: "", loading: null,
 };
 window.prism = state; // for the browser test
 
@@ -54,6 +55,8 @@ function redraw() {
 }
 
 function putTile(x0, y0, w, h, data) {
+  // Tiles that come while the picture loads are put over it afterwards.
+  if (state.loading) { state.loading.push([x0, y0, w, h, data]); return; }
   const W = state.width;
   for (let y = 0; y < h; y++) {
     state.radiance.set(data.subarray(y * w * 3, (y + 1) * w * 3), ((y0 + y) * W + x0) * 3);
@@ -73,12 +76,33 @@ function putCoarse(cw, ch, data) {
   redraw();
 }
 
+// The picture as it is now: binary f32 RGB, its size in the headers.
 async function loadPicture() {
-  const p = await (await fetch("/picture")).json();
-  if (!p.width) return;
-  resize(p.width, p.height);
-  state.radiance.set(decode(p.data));
-  redraw();
+  if (state.loading) return;
+  state.loading = [];
+  try {
+    for (;;) {
+      const r = await fetch("/picture");
+      if (r.ok) {
+        const w = +r.headers.get("x-prism-width"), h = +r.headers.get("x-prism-height");
+        const data = new Float32Array(await r.arrayBuffer());
+        if (w && h && data.length === w * h * 3) {
+          resize(w, h);
+          state.radiance.set(data);
+          redraw();
+        }
+        break;
+      }
+      // Busy (503): try again shortly.
+      await new Promise((ok) => setTimeout(ok, 1000));
+    }
+  } catch (e) {
+    // The stream's error handler reconnects.
+  } finally {
+    const queued = state.loading;
+    state.loading = null;
+    for (const t of queued) putTile(...t);
+  }
 }
 
 function showStatus(s) {
@@ -86,6 +110,14 @@ function showStatus(s) {
   state.phase = s.phase;
   if (s.generation !== state.generation) {
     state.generation = s.generation;
+  }
+  if (s.scene) {
+    $("scene").textContent = s.scene;
+    document.title = `${s.scene} — Prism preview`;
+  }
+  // A debug view follows the scene once it has loaded.
+  if (state.view && s.generation !== state.viewGeneration && s.phase !== "loading" && s.phase !== "error") {
+    showView();
   }
   if (s.width && s.height) resize(s.width, s.height);
   const phase = $("phase");
@@ -101,8 +133,32 @@ function showStatus(s) {
     `${e.file}:${e.line}:${e.column}: error: ${e.message}`).join("\n");
 }
 
+function notice(text) {
+  state.notice = text;
+  $("notice").textContent = text;
+  $("notice").hidden = !text;
+}
+
+let retry = 1;
 function connect() {
   const events = new EventSource("/events");
+  events.onerror = async () => {
+    if (events.readyState !== EventSource.CLOSED) {
+      notice("connection lost; reconnecting …");
+      return;
+    }
+    // Refused (the browser does not retry that): say why, try again.
+    let why = "the preview server cannot be reached";
+    try {
+      const r = await fetch("/events");
+      why = r.ok ? "" : (await r.text()).trim();
+      if (r.body) r.body.cancel();
+    } catch (e) { /* not reachable */ }
+    const wait = retry;
+    retry = Math.min(retry * 2, 10);
+    notice(`${why || "disconnected"}; retrying in ${wait} s`);
+    setTimeout(connect, wait * 1000);
+  };
   events.addEventListener("status", (e) => showStatus(JSON.parse(e.data)));
   events.addEventListener("frame", (e) => {
     const f = JSON.parse(e.data);
@@ -114,7 +170,7 @@ function connect() {
     if (state.radiance) putTile(t.x0, t.y0, t.w, t.h, decode(t.data));
   });
   events.addEventListener("lagged", loadPicture);
-  events.onopen = loadPicture;
+  events.onopen = () => { retry = 1; notice(""); loadPicture(); };
 }
 
 // Exposure, zoom, the value under the cursor.
@@ -148,11 +204,51 @@ $("stage").onclick = (ev) => {
   if (p) explain(p[0], p[1]);
 };
 
+// Debug views: fetched (so that a view no longer wanted is abandoned, and
+// the server stops rendering it), shown over the picture, renewed when the
+// scene changes; the heat ramps get a legend.
+const RAMPS = { bounces: "depth of the deepest ray", feelers: "shadow feelers per pixel",
+  time: "nanoseconds per pixel" };
+let viewRequest = null;
+async function showView() {
+  if (viewRequest) viewRequest.abort();
+  const name = state.view, img = $("aov");
+  if (!name) {
+    img.hidden = true; $("legend").hidden = true;
+    state.viewGeneration = 0;
+    return;
+  }
+  const request = viewRequest = new AbortController();
+  state.viewGeneration = state.generation;
+  try {
+    const r = await fetch(`/aov.png?name=${name}&g=${state.generation}`, { signal: request.signal });
+    if (r.status === 503) {
+      // Busy: ask again shortly, unless another view was chosen meanwhile.
+      setTimeout(() => { if (request === viewRequest) showView(); }, 1000);
+      return;
+    }
+    if (!r.ok) { notice(`${name}: ${(await r.text()).trim()}`); return; }
+    const top = r.headers.get("x-prism-ramp-top");
+    const blob = await r.blob();
+    if (request !== viewRequest) return;
+    if (img.src.startsWith("blob:")) URL.revokeObjectURL(img.src);
+    img.src = URL.createObjectURL(blob);
+    img.dataset.generation = r.headers.get("x-prism-generation") || "";
+    img.dataset.view = name;
+    img.hidden = false;
+    state.viewTop = top === null ? null : +top;
+    $("legend").hidden = top === null;
+    if (top !== null) {
+      $("legend-top").textContent = (+top).toPrecision(4).replace(/\.?0+$/, "") + " or more";
+      $("legend-what").textContent = `${name}: ${RAMPS[name]}, black to white`;
+    }
+  } catch (e) {
+    if (e.name !== "AbortError") notice(`${name}: ${e}`);
+  }
+}
 $("view-select").onchange = (e) => {
-  const img = $("aov");
-  if (!e.target.value) { img.hidden = true; return; }
-  img.src = `/aov.png?name=${e.target.value}&t=${Date.now()}`;
-  img.hidden = false;
+  state.view = e.target.value;
+  showView();
 };
 
 // The inspector: the ray tree of one sample.
@@ -209,5 +305,6 @@ async function explain(x, y) {
   }
 }
 
-$("scene").textContent = document.title;
+// The token is kept in a cookie now: out of the address bar.
+if (new URLSearchParams(location.search).has("token")) history.replaceState(null, "", "/");
 connect();
