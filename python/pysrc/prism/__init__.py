@@ -1,0 +1,393 @@
+"""Prism, an exact Whitted-style ray tracer, from Python.
+
+    >>> import prism
+    >>> scene = prism.load("scenes/whitted.toml")
+    >>> img = scene.render(spp=4)          # (480, 640, 3) float32, linear radiance
+    >>> prism.write("whitted.png", img)     # 8-bit sRGB, as `prism render` writes it
+    >>> tree = prism.explain(scene, 320, 240)   # the pixel's ray tree, as dicts
+
+Renders equal, bit for bit, the EXR that ``prism render`` writes with the
+same settings. Scenes are the TOML files of docs/scene-format.md, TOML
+text (:func:`loads`), or dicts with the same keys (:meth:`Scene.from_dict`).
+Problems in a scene raise :class:`SceneError` with its file, line and
+column; bad arguments raise ``ValueError``.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import zlib
+import struct
+from typing import Any, Callable, Iterable, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _prism
+from ._prism import SceneError
+
+__all__ = [
+    "Image",
+    "Scene",
+    "SceneError",
+    "explain",
+    "load",
+    "loads",
+    "read_exr",
+    "to_srgb8",
+    "write",
+    "interact",
+    "AOVS",
+]
+
+#: The debug views ``Scene.render(aov=...)`` takes.
+AOVS: Tuple[str, ...] = tuple(_prism.AOVS)
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+class Image(np.ndarray):
+    """Linear radiance, float32, shape (H, W, 3): a NumPy array (no copy of
+    the render) that shows itself in Jupyter. ``exposure`` (in stops) is
+    applied to what is shown, never to the values."""
+
+    exposure: float = 0.0
+
+    def __array_finalize__(self, obj: Any) -> None:
+        self.exposure = getattr(obj, "exposure", 0.0)
+
+    def with_exposure(self, ev: float) -> "Image":
+        """The same pixels (a view), shown ``ev`` stops brighter."""
+        view = self.view(Image)
+        view.exposure = float(ev)
+        return view
+
+    def _repr_png_(self) -> Optional[bytes]:
+        if self.ndim != 3 or self.shape[2] != 3 or self.dtype != np.float32:
+            return None
+        scaled = np.asarray(self, dtype=np.float32) * np.float32(2.0 ** self.exposure)
+        return _png_bytes(to_srgb8(scaled))
+
+
+def _png_bytes(rgb8: np.ndarray) -> bytes:
+    """A PNG of an (H, W, 3) uint8 array, with the standard library only."""
+    h, w, _ = rgb8.shape
+    raw = b"".join(b"\x00" + rgb8[y].tobytes() for y in range(h))
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        body = kind + data
+        return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body) & 0xFFFFFFFF)
+
+    header = struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0)
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", header)
+        + chunk(b"IDAT", zlib.compress(raw, 6))
+        + chunk(b"IEND", b"")
+    )
+
+
+def _tqdm_progress(total_hint: str) -> Optional[Callable[[int, int], None]]:
+    try:
+        from tqdm.auto import tqdm  # type: ignore
+    except ImportError:
+        return None
+    bar = None
+
+    def update(done: int, total: int) -> None:
+        nonlocal bar
+        if bar is None:
+            bar = tqdm(total=total, unit="px", unit_scale=True, desc=total_hint, leave=False)
+        bar.n = done
+        bar.refresh()
+        if done >= total:
+            bar.close()
+
+    return update
+
+
+class Scene:
+    """A loaded scene. Make one with :func:`load`, :func:`loads` or
+    :meth:`Scene.from_dict`."""
+
+    def __init__(self, inner: "_prism.Scene") -> None:
+        self._inner = inner
+
+    @classmethod
+    def from_dict(
+        cls,
+        scene: Mapping[str, Any],
+        base_dir: Optional[PathLike] = None,
+        allow_read: Iterable[PathLike] = (),
+    ) -> "Scene":
+        """A scene from a dict with the keys of the scene file
+        (``{"camera": {...}, "objects": [{...}], ...}``). A problem raises
+        :class:`SceneError` whose ``key_path`` names the key
+        (``objects[1].radius``)."""
+        text, paths = _to_toml(scene)
+        try:
+            return loads(text, base_dir=base_dir, origin="<dict>", allow_read=allow_read)
+        except SceneError as e:
+            _locate_in_dict(e, paths)
+            raise
+
+    def render(
+        self,
+        width: Optional[int] = None,
+        height: Optional[int] = None,
+        spp: Optional[int] = None,
+        max_depth: Optional[int] = None,
+        seed: Optional[int] = None,
+        frame: int = 0,
+        threads: Optional[int] = None,
+        crop: Optional[Tuple[int, int, int, int]] = None,
+        aov: Optional[str] = None,
+        progress: Union[None, bool, Callable[[int, int], Any]] = None,
+    ) -> Image:
+        """Render the scene; settings left out are the scene's own.
+
+        Returns linear radiance as an :class:`Image` (a float32 NumPy array
+        of shape (height, width, 3); with ``crop=(x0, x1, y0, y1)`` the
+        crop's shape), equal bit for bit to the EXR of ``prism render``.
+        ``aov`` renders a debug view instead (one of :data:`AOVS`).
+        ``progress``: a callable ``f(pixels_done, pixels_total)``, ``False``
+        for none; by default a tqdm bar when tqdm is installed.
+
+        The GIL is released while rendering; Ctrl-C (KeyboardInterrupt)
+        stops the render within a row of pixels.
+        """
+        if progress is None:
+            progress = _tqdm_progress("prism")
+        elif progress is False:
+            progress = None
+        elif progress is True:
+            progress = _tqdm_progress("prism")
+        pixels = self._inner.render(
+            width=width,
+            height=height,
+            spp=spp,
+            max_depth=max_depth,
+            seed=seed,
+            frame=frame,
+            threads=threads,
+            crop=tuple(crop) if crop is not None else None,
+            aov=aov,
+            progress=progress,
+        )
+        return pixels.view(Image)
+
+    def explain(self, x: int, y: int, sample: int = 0, **settings: Any) -> dict:
+        """The ray tree of one sample of pixel (x, y): the same tree as
+        ``prism explain --json``, as dicts and lists."""
+        return json.loads(self._inner.explain_json(x, y, sample=sample, **settings))
+
+    @property
+    def settings(self) -> dict:
+        """The scene's ``[render]`` settings."""
+        return {k: (v if k == "min_weight" else int(v)) for k, v in self._inner.settings_dict.items()}
+
+    @property
+    def warnings(self) -> list:
+        """Warnings from loading, in file order."""
+        return list(self._inner.warnings)
+
+    @property
+    def frames(self) -> int:
+        """Number of animation frames (1 for a still)."""
+        return self._inner.frames
+
+    def __repr__(self) -> str:
+        s = self.settings
+        return f"<prism.Scene {s['width']}x{s['height']} spp={s['spp']} frames={self.frames}>"
+
+
+def load(path: PathLike, allow_read: Iterable[PathLike] = (), frame: int = 0) -> Scene:
+    """Load a scene file (TOML). It may read files below its own folder,
+    below each of ``allow_read`` and below PRISM_ALLOW_READ's folders: the
+    read policy of ``prism render``."""
+    return Scene(_prism.load(os.fspath(path), [os.fspath(p) for p in allow_read], frame))
+
+
+def loads(
+    text: str,
+    base_dir: Optional[PathLike] = None,
+    origin: str = "<string>",
+    allow_read: Iterable[PathLike] = (),
+    frame: int = 0,
+) -> Scene:
+    """Load a scene from TOML text. Relative paths in it (models,
+    textures) are read below ``base_dir`` (the working folder by default);
+    ``origin`` names the text in error messages."""
+    return Scene(
+        _prism.loads(
+            text,
+            os.fspath(base_dir) if base_dir is not None else None,
+            origin,
+            [os.fspath(p) for p in allow_read],
+            frame,
+        )
+    )
+
+
+def explain(scene: Scene, x: int, y: int, sample: int = 0, **settings: Any) -> dict:
+    """The ray tree of one sample of pixel (x, y), as ``prism explain
+    --json`` gives it: ``radiance`` (the sample's RGB), ``tree`` (the camera
+    ray, its hit, the Whitted terms and the reflected and refracted
+    subtrees)."""
+    return scene.explain(x, y, sample=sample, **settings)
+
+
+def _as_rgb32(array: Any) -> np.ndarray:
+    a = np.ascontiguousarray(array, dtype=np.float32)
+    if a.ndim != 3 or a.shape[2] != 3:
+        raise ValueError(f"expected an array of shape (H, W, 3), got {a.shape}")
+    return a
+
+
+def write(path: PathLike, array: Any) -> None:
+    """Write linear radiance (H, W, 3) to ``path``: .png and .ppm as 8-bit
+    sRGB (clamped), .exr and .hdr as linear float; atomically, with the
+    encodings of ``prism render``."""
+    _prism.write(os.fspath(path), _as_rgb32(array))
+
+
+def to_srgb8(array: Any) -> np.ndarray:
+    """Linear radiance to 8-bit sRGB (clamped), as PNG output encodes it."""
+    return _prism.to_srgb8(_as_rgb32(array))
+
+
+def read_exr(path: PathLike) -> Tuple[Image, Tuple[int, int, int, int]]:
+    """Read an EXR written by ``prism render`` (a frame or a part): its
+    pixels (float32) and its region (x0, x1, y0, y1) in the frame."""
+    pixels, region = _prism.read_exr(os.fspath(path))
+    return pixels.view(Image), region
+
+
+def interact(scene_dict: Mapping[str, Any], render: Optional[Mapping[str, Any]] = None, **sliders: Any):
+    """Re-render a dict scene as sliders change (needs ipywidgets).
+
+    ``sliders`` maps a key path (``"materials.glass.ior"`` written as
+    ``materials__glass__ior``) to an ipywidgets slider or a (min, max, step)
+    tuple; ``render`` holds ``Scene.render`` arguments."""
+    import copy
+
+    import ipywidgets  # type: ignore
+    from IPython.display import display  # type: ignore
+
+    render = dict(render or {})
+    render.setdefault("progress", False)
+
+    def show(**values: Any) -> None:
+        d = copy.deepcopy(dict(scene_dict))
+        for key, value in values.items():
+            _set_path(d, key.split("__"), value)
+        display(Scene.from_dict(d).render(**render))
+
+    ipywidgets.interact(show, **sliders)
+
+
+def _set_path(d: Any, path: Sequence[str], value: Any) -> None:
+    for key in path[:-1]:
+        d = d[int(key)] if isinstance(d, list) else d[key]
+    last = path[-1]
+    if isinstance(d, list):
+        d[int(last)] = value
+    else:
+        d[last] = value
+
+
+# --- dicts as TOML, remembering which line holds which key ------------------
+
+def _toml_key(k: str) -> str:
+    if k and all(c.isalnum() or c in "_-" for c in k):
+        return k
+    return json.dumps(k)
+
+
+def _toml_value(v: Any, where: str) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        f = float(v)
+        if f != f or f in (float("inf"), float("-inf")):
+            return {"nan": "nan", "inf": "inf", "-inf": "-inf"}[repr(f)]
+        return repr(f)
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, os.PathLike):
+        return json.dumps(os.fspath(v))
+    if isinstance(v, np.ndarray):
+        v = v.tolist()
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x, f"{where}[{i}]") for i, x in enumerate(v)) + "]"
+    if isinstance(v, Mapping):
+        items = ", ".join(f"{_toml_key(str(k))} = {_toml_value(x, f'{where}.{k}')}" for k, x in v.items())
+        return "{ " + items + " }"
+    raise ValueError(f"{where}: cannot put a {type(v).__name__} in a scene")
+
+
+def _is_table(v: Any) -> bool:
+    return isinstance(v, Mapping)
+
+
+def _is_table_array(v: Any) -> bool:
+    return isinstance(v, (list, tuple)) and len(v) > 0 and all(isinstance(x, Mapping) for x in v)
+
+
+def _to_toml(scene: Mapping[str, Any]) -> Tuple[str, list]:
+    """TOML text for ``scene`` and, per line, the key path it holds."""
+    if not isinstance(scene, Mapping):
+        raise ValueError("a scene dict is a mapping of section names to tables")
+    lines: list = []
+    paths: list = []
+
+    def emit(line: str, path: str) -> None:
+        lines.append(line)
+        paths.append(path)
+
+    def table(d: Mapping[str, Any], prefix: str, header: Optional[str], header_path: str) -> None:
+        if header is not None:
+            emit(header, header_path)
+        nested = []
+        for k, v in d.items():
+            key = str(k)
+            path = f"{prefix}.{key}" if prefix else key
+            if _is_table(v) or _is_table_array(v):
+                nested.append((key, v, path))
+            else:
+                emit(f"{_toml_key(key)} = {_toml_value(v, path)}", path)
+        for key, v, path in nested:
+            dotted = ".".join(_toml_key(p) for p in _split(path))
+            if _is_table(v):
+                table(v, path, f"[{dotted}]", path)
+            else:
+                for i, item in enumerate(v):
+                    table(item, f"{path}[{i}]", f"[[{dotted}]]", f"{path}[{i}]")
+
+    table(scene, "", None, "")
+    return "\n".join(lines) + "\n", paths
+
+
+def _split(path: str) -> list:
+    """`objects[1].material` → the TOML table names: objects, material."""
+    parts = []
+    for p in path.split("."):
+        parts.append(p.split("[")[0])
+    return parts
+
+
+def _locate_in_dict(e: SceneError, paths: list) -> None:
+    """Point the error at the dict's key path instead of the generated
+    text's line."""
+    line = getattr(e, "line", None)
+    if line is None or not (1 <= line <= len(paths)):
+        e.key_path = None
+        return
+    e.key_path = paths[line - 1] or None
+    if e.key_path:
+        e.message = f"{e.key_path}: {e.message}"
+        e.args = (f"<dict>: {e.key_path}: " + str(e.problems[0][2]),) + tuple(e.args[1:])
+        e.file = "<dict>"
