@@ -91,16 +91,21 @@ fn nothing_ran(dir: &Path) {
     }
 }
 
+/// Runs render.sbatch as Slurm runs array task `k`.
+fn run_task(out: &Path, k: u32) {
+    let o = Command::new("bash")
+        .arg(out.join("render.sbatch"))
+        .env("SLURM_ARRAY_TASK_ID", k.to_string())
+        .current_dir(out)
+        .output()
+        .unwrap();
+    ok(o, &format!("render.sbatch task {k}"));
+}
+
 /// Runs render.sbatch for every task and merge.sbatch, as Slurm would.
 fn run_slurm_scripts(out: &Path, tasks: u32) {
     for k in 0..tasks {
-        let o = Command::new("bash")
-            .arg(out.join("render.sbatch"))
-            .env("SLURM_ARRAY_TASK_ID", k.to_string())
-            .current_dir(out)
-            .output()
-            .unwrap();
-        ok(o, &format!("render.sbatch task {k}"));
+        run_task(out, k);
     }
     let o = Command::new("bash")
         .arg(out.join("merge.sbatch"))
@@ -378,12 +383,7 @@ fn a_refused_part_is_rendered_again_and_other_frames_merge() {
     ];
     ok(run(&prism, d, &plan), "plan");
     for k in 0..4 {
-        let o = Command::new("bash")
-            .arg(out.join("render.sbatch"))
-            .env("SLURM_ARRAY_TASK_ID", k.to_string())
-            .output()
-            .unwrap();
-        ok(o, "task");
+        run_task(&out, k);
     }
     // A part of another frame copied over frame 0's tile 1.
     std::fs::copy(
@@ -402,12 +402,7 @@ fn a_refused_part_is_rendered_again_and_other_frames_merge() {
     );
     let rerun = ok(run(&prism, d, &plan), "rerun");
     assert!(rerun.contains("--array=1 "), "{rerun}");
-    let o1 = Command::new("bash")
-        .arg(out.join("render.sbatch"))
-        .env("SLURM_ARRAY_TASK_ID", "1")
-        .output()
-        .unwrap();
-    ok(o1, "task 1 again");
+    run_task(&out, 1);
     ok(run(&prism, d, &["farm", "merge", o]), "merge");
     let status = ok(run(&prism, d, &["farm", "status", o]), "status");
     assert!(status.contains("merged: 2 of 2 frames"), "{status}");
