@@ -13,7 +13,7 @@ VENV=$ROOT/target/python-test-venv
 rm -rf "$VENV"
 python3 -m venv "$VENV"
 PIP=("$VENV/bin/pip" install --quiet --disable-pip-version-check)
-"${PIP[@]}" pytest==8.4.2 tqdm nbclient==0.10.2 nbformat ipykernel
+"${PIP[@]}" pytest==8.4.2 tqdm ipywidgets nbclient==0.10.2 nbformat ipykernel
 start=$(date +%s)
 "${PIP[@]}" ./python
 echo "pip install ./python: $(( $(date +%s) - start )) s"

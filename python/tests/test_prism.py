@@ -209,3 +209,39 @@ def test_write_encodings_and_srgb(tmp_path):
     assert png.startswith(b"\x89PNG")
     brighter = img.view(prism.Image).with_exposure(1)
     assert brighter._repr_png_() != png and brighter.base is not None
+
+
+def test_default_progress_is_a_tqdm_bar_when_tqdm_is_installed(capsys):
+    pytest.importorskip("tqdm")
+    prism.load(SCENES / "whitted.toml").render(width=64, height=48, spp=1)
+    assert "px" in capsys.readouterr().err
+
+
+def test_interact_re_renders_when_a_slider_moves():
+    widgets = pytest.importorskip("ipywidgets")
+    shown = []
+    import IPython.display
+
+    real = IPython.display.display
+    IPython.display.display = lambda *objs, **kw: shown.extend(objs)
+    try:
+        d = {
+            "render": {"width": 32, "height": 24, "spp": 1},
+            "camera": {"position": [0, 1, -5], "look_at": [0, 1, 0], "fov": 40},
+            "lights": {"key": {"type": "point", "position": [2, 5, -3], "intensity": 1.0}},
+            "materials": {"red": {"color": [0.8, 0.1, 0.1]}},
+            "objects": [{"type": "sphere", "center": [0, 1, 0], "radius": 1.0, "material": "red"}],
+        }
+        slider = widgets.FloatSlider(value=1.0, min=0.5, max=2.0)
+        prism.interact(d, objects__0__radius=slider)
+        slider.value = 0.5
+    finally:
+        IPython.display.display = real
+    assert len(shown) >= 2 and all(isinstance(s, prism.Image) for s in shown)
+    # The smaller ball covers fewer pixels.
+    assert (shown[-1] > 0.05).sum() < (shown[0] > 0.05).sum()
+
+
+def test_help_reads_well():
+    doc = prism.Scene.render.__doc__
+    assert "float32" in doc and "KeyboardInterrupt" in doc and "crop" in doc
