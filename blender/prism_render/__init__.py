@@ -19,7 +19,7 @@ import tempfile
 
 import bpy
 
-from . import runner, scene_file
+from . import runner, scene_file, tiles
 
 ENGINE = "PRISM"
 
@@ -113,11 +113,17 @@ class PrismRenderEngine(bpy.types.RenderEngine):
             f.write(text)
         if os.path.exists(exr):
             os.remove(exr)
-        command = [prism, "render", toml, "-o", exr]
+        # Prism saves each finished tile here; they are shown as they come.
+        tile_dir = os.path.join(folder, "tiles")
+        shutil.rmtree(tile_dir, ignore_errors=True)
+        command = [prism, "render", toml, "-o", exr, "--checkpoint", tile_dir]
         if scene.render.threads_mode == "FIXED":
             command += ["--threads", str(scene.render.threads)]
         self.update_stats("", "Prism: rendering")
-        outcome = runner.render(command, self.update_progress, self.test_break)
+        watcher = tiles.TileWatcher(tile_dir, height)
+        outcome = runner.render(command, self.update_progress, self.test_break,
+                                on_poll=lambda: watcher.poll(self))
+        shutil.rmtree(tile_dir, ignore_errors=True)
         for w in outcome.warnings:
             self.report({"WARNING"}, f"Prism: {w}")
         if outcome.cancelled:

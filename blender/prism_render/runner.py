@@ -20,9 +20,10 @@ class Outcome:
         self.log = []
 
 
-def render(command, on_progress, should_stop, poll=0.1):
+def render(command, on_progress, should_stop, on_poll=None, poll=0.1):
     """Run `command` (a list), calling on_progress(fraction) for each
-    progress line and stopping it when should_stop() turns true."""
+    progress line and on_poll() now and then, and stopping it when
+    should_stop() turns true."""
     out = Outcome()
     try:
         proc = subprocess.Popen(
@@ -48,6 +49,7 @@ def render(command, on_progress, should_stop, poll=0.1):
     reader.start()
     stopped_at = None
     finished = False
+    polled = time.monotonic()
     while not finished:
         try:
             line = lines.get(timeout=poll)
@@ -62,6 +64,9 @@ def render(command, on_progress, should_stop, poll=0.1):
                 on_progress(min(100, int(m.group(1))) / 100.0)
             elif line.startswith("warning:"):
                 out.warnings.append(line[len("warning:"):].strip())
+        if on_poll is not None and stopped_at is None and time.monotonic() - polled >= 0.25:
+            polled = time.monotonic()
+            on_poll()
         if stopped_at is None and should_stop():
             # SIGTERM: Prism stops at the next row and writes nothing.
             out.cancelled = True
