@@ -1,0 +1,26 @@
+"""Checks that two EXR images agree: the add-on's render (as Blender saved
+it) against `prism render` of the same export. Each channel within 1/255,
+relative to the value above 1 (Prism's radiance is not clamped).
+Run: blender -b --factory-startup --python compare.py -- A.exr B.exr"""
+
+import os
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+import exr  # noqa: E402
+
+a_path, b_path = sys.argv[sys.argv.index("--") + 1:][:2]
+a, b = exr.rgb(a_path), exr.rgb(b_path)
+if a.shape != b.shape:
+    print(f"compare: FAIL: {a_path} is {a.shape[1]}x{a.shape[0]}, {b_path} {b.shape[1]}x{b.shape[0]}")
+    sys.exit(1)
+diff = np.abs(a - b) / np.maximum(1.0, np.abs(b))
+worst = float(diff.max())
+print(f"compare: {a.shape[1]}x{a.shape[0]}, largest difference {worst:.3g} "
+      f"({'byte-equal' if worst == 0 else 'within 1/255' if worst <= 1 / 255 else 'DIFFERENT'}), "
+      f"mean {float(a.mean()):.6g} vs {float(b.mean()):.6g}")
+if not (worst <= 1 / 255) or float(a.max()) <= 0.0:
+    print("compare: FAIL (differ, or the image is black)")
+    sys.exit(1)

@@ -1,0 +1,56 @@
+"""Renders the opened scene in Cycles (its own low sample count, CPU) and
+prints the ratio of Prism's image to Cycles' at the image centre (on the
+diffuse plane in the probe scenes); writes OUT/cycles.exr and a
+side-by-side OUT/side_by_side.png (Cycles left, Prism right).
+Run: blender -b SCENE.blend --python cycles_probe.py -- PRISM.exr OUT NAME
+"""
+
+import os
+import sys
+
+import bpy
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+import exr  # noqa: E402
+
+# ---------------------------------------------------------------------------
+# THE SWITCH: the probes' tolerance against Cycles. None prints the ratio
+# only; set it to 0.05 (or PRISM_ASSERT_CYCLES=0.05) once Prism reads glTF
+# lights in their units (issue 15, item 1). Until then Prism is ~683·π =
+# 2146 times brighter.
+# ---------------------------------------------------------------------------
+ASSERT_WITHIN = None
+if os.environ.get("PRISM_ASSERT_CYCLES"):
+    ASSERT_WITHIN = float(os.environ["PRISM_ASSERT_CYCLES"])
+
+prism_path, out, name = sys.argv[sys.argv.index("--") + 1:][:3]
+scene = bpy.context.scene
+scene.render.engine = "CYCLES"
+scene.cycles.device = "CPU"
+scene.cycles.use_denoising = False  # Debian builds Cycles without OpenImageDenoise
+scene.render.image_settings.file_format = "OPEN_EXR"
+scene.render.image_settings.color_depth = "32"
+scene.render.filepath = os.path.join(out, "cycles.exr")
+bpy.ops.render.render(write_still=True)
+cycles, prism = exr.rgb(os.path.join(out, "cycles.exr")), exr.rgb(prism_path)
+c, p = exr.centre(cycles), exr.centre(prism)
+ratio = float(p.mean() / c.mean()) if c.mean() > 0 else float("inf")
+print(f"cycles_probe: {name}: centre Prism {p.mean():.6g}, Cycles {c.mean():.6g}, "
+      f"Prism/Cycles = {ratio:.4g}")
+
+# Side by side, both through the Standard view (sRGB), for docs/blender.md.
+both = np.concatenate([cycles, prism], axis=1)
+srgb = np.where(both <= 0.0031308, 12.92 * both, 1.055 * np.power(np.maximum(both, 0), 1 / 2.4) - 0.055)
+srgb = np.repeat(np.repeat(srgb, 4, axis=0), 4, axis=1)  # 4x, nearest: visible in the docs
+h, w = srgb.shape[:2]
+rgba = np.concatenate([np.clip(srgb, 0, 1), np.ones((h, w, 1), np.float32)], axis=2)
+image = bpy.data.images.new("side by side", w, h, alpha=False)
+image.pixels.foreach_set(rgba.astype(np.float32).ravel())
+image.filepath_raw = os.path.join(out, "side_by_side.png")
+image.file_format = "PNG"
+image.save()
+
+if ASSERT_WITHIN is not None and not abs(ratio - 1.0) <= ASSERT_WITHIN:
+    print(f"cycles_probe: FAIL: {name}: Prism/Cycles = {ratio:.4g}, not within {ASSERT_WITHIN:.0%}")
+    sys.exit(1)

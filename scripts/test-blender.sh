@@ -1,0 +1,67 @@
+#!/bin/bash
+# Prism and Blender (issue 15, items 8-9): installs Debian's blender and
+# python3-numpy (the glTF exporter needs numpy; the package does not pull
+# it in) when absent, builds prism and the add-on zip, then headless:
+#  1. scripts/blender/make_scenes.py builds the probes (a diffuse plane
+#     under a point, spot or sun light) and Blender's default scene;
+#  2. each renders through the add-on (`-E PRISM -f 1`, the zip installed
+#     as a user would) and must equal `prism render` of the same export
+#     (scripts/blender/compare.py);
+#  3. each renders in Cycles and the ratio Prism/Cycles at the centre is
+#     printed (asserted only with the switch in scripts/blender/cycles_probe.py).
+#  4. cancel and error reports (scripts/blender/engine_probe.py);
+# Work files: target/blender-test/. With --update-data the exports are
+# copied to tests/data/blender/ (commit them, with the Blender version).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+if ! command -v blender >/dev/null || ! dpkg -s python3-numpy >/dev/null 2>&1; then
+    echo "installing blender and python3-numpy from Debian ..." >&2
+    apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq blender python3-numpy >/dev/null
+fi
+cargo build --release --locked --quiet
+scripts/build-blender-addon.sh >/dev/null
+PRISM=$PWD/target/release/prism
+ZIP=$PWD/target/prism_render.zip
+WORK=$PWD/target/blender-test
+rm -rf "$WORK"
+mkdir -p "$WORK"
+# The add-on is installed here, not into the user's own Blender.
+export BLENDER_USER_SCRIPTS=$WORK/user-scripts
+blend() { blender --background --python-exit-code 1 "$@" >>"$WORK/blender.log" 2>&1 || {
+    echo "blender failed: $*; the end of $WORK/blender.log:" >&2; tail -30 "$WORK/blender.log" >&2; exit 1; }; }
+start=$(date +%s)
+blender --version | head -1
+blend --factory-startup --python scripts/blender/make_scenes.py -- "$WORK"
+for name in probe_point probe_spot probe_sun default; do
+    dir=$WORK/$name
+    mkdir -p "$dir"
+    spp=1
+    [ "$name" = default ] && spp=4
+    # Through the add-on, as `blender -b FILE -E PRISM -f 1` does.
+    blend "$WORK/$name.blend" --python scripts/blender/use_addon.py \
+        -E PRISM -o "$dir/blender_#" -f 1 -- "$ZIP" "$PRISM" "$dir/export" "$spp"
+    if [ ! -f "$dir/blender_1.exr" ]; then
+        echo "FAIL: $name: the add-on rendered nothing; $WORK/blender.log says:" >&2
+        grep -i "error" "$WORK/blender.log" | tail -10 >&2
+        exit 1
+    fi
+    "$PRISM" render "$dir/export/scene.toml" -o "$dir/prism.exr" --quiet
+    blend --factory-startup --python scripts/blender/compare.py -- "$dir/blender_1.exr" "$dir/prism.exr"
+    grep "^compare:" "$WORK/blender.log" | tail -1 | sed "s/^/$name: /"
+    blend "$WORK/$name.blend" --python scripts/blender/cycles_probe.py -- "$dir/prism.exr" "$dir" "$name"
+    grep "^cycles_probe:" "$WORK/blender.log" | tail -1
+done
+# Cancel once tiles are shown; Prism's error reaches Blender's reports.
+blend "$WORK/probe_point.blend" --python scripts/blender/use_addon.py \
+    --python scripts/blender/engine_probe.py -- "$ZIP" "$PRISM" "$WORK/engine" 1
+grep "^engine_probe:" "$WORK/blender.log"
+if [ "${1:-}" = "--update-data" ]; then
+    version=$(blender --version | head -1)
+    for name in probe_point probe_spot probe_sun default; do
+        cp "$WORK/$name/export/scene.glb" "tests/data/blender/$name.glb"
+    done
+    cp "$WORK/default/side_by_side.png" docs/images/blender-default.png
+    echo "tests/data/blender/ and docs/images/blender-default.png updated ($version)"
+fi
+echo "test-blender: ok in $(( $(date +%s) - start )) s (the log: $WORK/blender.log)"
