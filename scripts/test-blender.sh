@@ -1,7 +1,7 @@
 #!/bin/bash
 # Prism and Blender (issue 15, items 8-9): installs Debian's blender and
 # python3-numpy (the glTF exporter needs numpy; the package does not pull
-# it in) when absent, builds prism and the add-on zip, then headless:
+# it in) and xvfb when absent, builds prism and the add-on zip, then headless:
 #  1. scripts/blender/make_scenes.py builds the probes (a diffuse plane
 #     under a point, spot or sun light) and Blender's default scene;
 #  2. each renders through the add-on (`-E PRISM -f 1`, the zip installed
@@ -10,14 +10,19 @@
 #  3. each renders in Cycles and the ratio Prism/Cycles at the centre is
 #     printed (asserted only with the switch in scripts/blender/cycles_probe.py).
 #  4. cancel and error reports (scripts/blender/engine_probe.py);
+#  5. F12 in Blender's interface under xvfb (scripts/blender/ui_render.py),
+#     checked against `prism render` of its export.
 # Work files: target/blender-test/. With --update-data the exports are
 # copied to tests/data/blender/ (commit them, with the Blender version).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-if ! command -v blender >/dev/null || ! dpkg -s python3-numpy >/dev/null 2>&1; then
-    echo "installing blender and python3-numpy from Debian ..." >&2
+# xvfb: F12 in Blender's interface renders on a job thread, a path of its
+# own; a virtual display lets the test take it.
+if ! command -v blender >/dev/null || ! dpkg -s python3-numpy >/dev/null 2>&1 \
+    || ! command -v xvfb-run >/dev/null; then
+    echo "installing blender, python3-numpy and xvfb from Debian ..." >&2
     apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq blender python3-numpy >/dev/null
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq blender python3-numpy xvfb xauth >/dev/null
 fi
 cargo build --release --locked --quiet
 scripts/build-blender-addon.sh >/dev/null
@@ -56,6 +61,21 @@ done
 blend "$WORK/probe_point.blend" --python scripts/blender/use_addon.py \
     --python scripts/blender/engine_probe.py -- "$ZIP" "$PRISM" "$WORK/engine" 1
 grep "^engine_probe:" "$WORK/blender.log"
+# F12 in the interface (under a virtual display): the add-on runs on the
+# render job's thread and hands the export to the main thread.
+ui=$WORK/ui
+mkdir -p "$ui"
+timeout 300 xvfb-run -a -s "-screen 0 1280x800x24" blender --factory-startup \
+    "$WORK/default.blend" --python scripts/blender/use_addon.py --python scripts/blender/ui_render.py \
+    -- "$ZIP" "$PRISM" "$ui/export" 4 "$ui/f12.exr" >>"$WORK/blender.log" 2>&1 || true
+grep "^ui_render:" "$WORK/blender.log" || true
+if [ ! -f "$ui/f12.exr" ]; then
+    echo "FAIL: F12 in the interface rendered nothing; see $WORK/blender.log" >&2
+    exit 1
+fi
+"$PRISM" render "$ui/export/scene.toml" -o "$ui/prism.exr" --quiet
+blend --factory-startup --python scripts/blender/compare.py -- "$ui/f12.exr" "$ui/prism.exr"
+grep "^compare:" "$WORK/blender.log" | tail -1 | sed "s/^/F12: /"
 if [ "${1:-}" = "--update-data" ]; then
     version=$(blender --version | head -1)
     for name in probe_point probe_spot probe_sun default; do

@@ -16,6 +16,7 @@ bl_info = {
 import os
 import shutil
 import tempfile
+import threading
 
 import bpy
 
@@ -100,7 +101,9 @@ class PrismRenderEngine(bpy.types.RenderEngine):
         exr = os.path.join(folder, "render.exr")
         self.update_stats("", "Prism: exporting glTF")
         try:
-            export_gltf(scene, glb, depsgraph.view_layer)
+            export_on_main_thread(self, scene, glb, depsgraph.view_layer)
+        except Cancelled:
+            return
         except Exception as e:  # the exporter's own failure, whatever it is
             return self._fail(f"the glTF export failed: {e}")
         try:
@@ -143,6 +146,41 @@ class PrismRenderEngine(bpy.types.RenderEngine):
         for line in message.splitlines() or [message]:
             self.report({"ERROR"}, f"Prism: {line}")
         self.error_set(f"Prism: {message.splitlines()[0] if message else 'failed'}")
+
+
+class Cancelled(Exception):
+    pass
+
+
+def export_on_main_thread(engine, scene, path, view_layer):
+    """The exporter is an operator and needs Blender's main thread; F12 in
+    the interface renders on a job thread. There the export is handed to
+    a timer (timers run on the main thread, whose event loop goes on during
+    a render) and this thread waits for it, or for Esc."""
+    if threading.current_thread() is threading.main_thread():
+        export_gltf(scene, path, view_layer)
+        return
+    done = threading.Event()
+    outcome = {}
+    frame = scene.frame_current
+
+    def run():
+        try:
+            if scene.frame_current != frame:
+                scene.frame_set(frame)
+            export_gltf(scene, path, view_layer)
+        except Exception as e:  # handed to the render thread
+            outcome["error"] = e
+        done.set()
+        return None
+
+    bpy.app.timers.register(run, first_interval=0.0)
+    while not done.wait(0.1):
+        if engine.test_break():
+            bpy.app.timers.is_registered(run) and bpy.app.timers.unregister(run)
+            raise Cancelled()
+    if "error" in outcome:
+        raise outcome["error"]
 
 
 def export_gltf(scene, path, view_layer=None):
