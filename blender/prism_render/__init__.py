@@ -123,7 +123,7 @@ class PrismRenderEngine(bpy.types.RenderEngine):
         if scene.render.threads_mode == "FIXED":
             command += ["--threads", str(scene.render.threads)]
         self.update_stats("", "Prism: rendering")
-        watcher = tiles.TileWatcher(tile_dir, height)
+        watcher = tiles.TileWatcher(tile_dir, height, depsgraph.view_layer.name)
         outcome = runner.render(command, self.update_progress, self.test_break,
                                 on_poll=lambda: watcher.poll(self))
         shutil.rmtree(tile_dir, ignore_errors=True)
@@ -133,7 +133,8 @@ class PrismRenderEngine(bpy.types.RenderEngine):
             return
         if outcome.errors:
             return self._fail("\n".join(outcome.errors))
-        result = self.begin_result(0, 0, width, height)
+        # Blender calls render() once per view layer; the image is that layer's.
+        result = self.begin_result(0, 0, width, height, layer=depsgraph.view_layer.name)
         try:
             result.layers[0].load_from_file(exr)
         except RuntimeError as e:
@@ -194,6 +195,9 @@ def export_gltf(scene, path, view_layer=None):
         "export_apply": True,          # modifiers applied
         "export_cameras": True,        # the .glb alone renders too
         "export_lights": True,         # KHR_lights_punctual
+        # Blender 3.6+: the specification's units (W to cd at 683 lm/W), as
+        # 3.4 always writes them.
+        "export_import_convert_lighting_mode": "SPEC",
         "use_selection": False,
         "use_visible": False,
         "use_renderable": True,        # what F12 renders: not hide_render

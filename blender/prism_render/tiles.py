@@ -38,9 +38,10 @@ def read_tile(path):
 class TileWatcher:
     """Hands each tile that appears in `folder` to the engine once."""
 
-    def __init__(self, folder, height):
+    def __init__(self, folder, height, layer=""):
         self.folder = folder
         self.height = height
+        self.layer = layer
         self.seen = set()
 
     def poll(self, engine):
@@ -64,6 +65,6 @@ class TileWatcher:
                 for i in range(w):
                     j = base + 3 * i
                     rect.append((v[j], v[j + 1], v[j + 2], 1.0))
-            result = engine.begin_result(x0, self.height - y1, w, h)
+            result = engine.begin_result(x0, self.height - y1, w, h, layer=self.layer)
             result.layers[0].passes["Combined"].rect = rect
             engine.end_result(result)

@@ -39,6 +39,18 @@ ratio = float(p.mean() / c.mean()) if c.mean() > 0 else float("inf")
 print(f"cycles_probe: {name}: centre Prism {p.mean():.6g}, Cycles {c.mean():.6g}, "
       f"Prism/Cycles = {ratio:.4g}")
 
+# Framing, whatever the units: the pixels that are not background (the
+# world colour, seen directly) must be the same in both, as intersection
+# over union. Only for the default scenes: in the probes the lit area
+# differs (a spot cone is still a point light in Prism).
+background = np.array(scene.world.node_tree.nodes["Background"].inputs["Color"].default_value[:3]) \
+    * scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value
+seen_c = np.abs(cycles - background).max(axis=2) > 0.003
+seen_p = np.abs(prism - background).max(axis=2) > 0.003
+iou = float((seen_c & seen_p).sum() / max(1, (seen_c | seen_p).sum()))
+print(f"cycles_probe: {name}: silhouette IoU Prism/Cycles = {iou:.3f}")
+framing_failed = name.startswith("default") and iou < 0.9
+
 # Side by side, both through the Standard view (sRGB), for docs/blender.md.
 both = np.concatenate([cycles, prism], axis=1)
 srgb = np.where(both <= 0.0031308, 12.92 * both, 1.055 * np.power(np.maximum(both, 0), 1 / 2.4) - 0.055)
@@ -51,6 +63,9 @@ image.filepath_raw = os.path.join(out, "side_by_side.png")
 image.file_format = "PNG"
 image.save()
 
+if framing_failed:
+    print(f"cycles_probe: FAIL: {name}: the framing differs from Cycles (IoU {iou:.3f} < 0.9)")
+    sys.exit(1)
 if ASSERT_WITHIN is not None and not abs(ratio - 1.0) <= ASSERT_WITHIN:
     print(f"cycles_probe: FAIL: {name}: Prism/Cycles = {ratio:.4g}, not within {ASSERT_WITHIN:.0%}")
     sys.exit(1)

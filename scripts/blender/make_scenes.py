@@ -3,7 +3,9 @@
     roughness 1) at z = 0 under one light 4 units above its centre, a camera
     looking straight down, black world, Standard view transform. Nothing
     else is in the scene, so Cycles has no indirect light to add.
-  default: Blender's factory startup scene (cube, light, camera).
+  default: Blender's factory startup scene (cube, light, camera);
+  default_ortho: the same through an orthographic camera;
+  default_portrait: the same at 36x64.
 All at 64x48 (the default scene 64x36, its 16:9).
 Run: blender --background --factory-startup --python make_scenes.py -- OUT
 """
@@ -23,6 +25,15 @@ scene.render.resolution_x, scene.render.resolution_y = 64, 36
 scene.render.resolution_percentage = 100
 scene.cycles.samples = 16
 bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "default.blend"))
+# The same through an orthographic camera, and a portrait frame (the
+# sensor then fits the height): the framing tests of the camera mapping.
+camera = scene.camera
+camera.data.type = "ORTHO"
+camera.data.ortho_scale = 6.0
+bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "default_ortho.blend"), copy=True)
+camera.data.type = "PERSP"
+scene.render.resolution_x, scene.render.resolution_y = 36, 64
+bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "default_portrait.blend"), copy=True)
 
 # The probes: start empty.
 for obj in list(bpy.data.objects):
