@@ -9,7 +9,8 @@
 #     (scripts/blender/compare.py);
 #  3. each renders in Cycles and the ratio Prism/Cycles at the centre is
 #     printed (asserted only with the switch in scripts/blender/cycles_probe.py).
-#  4. cancel and error reports (scripts/blender/engine_probe.py);
+#  4. a render border, cancel and error reports
+#     (scripts/blender/engine_probe.py);
 #  5. F12 in Blender's interface under xvfb (scripts/blender/ui_render.py),
 #     checked against `prism render` of its export.
 # Work files: target/blender-test/. With --update-data the exports are
@@ -57,6 +58,18 @@ for name in probe_point probe_spot probe_sun default default_ortho default_portr
     blend "$WORK/$name.blend" --python scripts/blender/cycles_probe.py -- "$dir/prism.exr" "$dir" "$name"
     grep "^cycles_probe:" "$WORK/blender.log" | tail -2
 done
+# A render border (cropped): Prism renders the border alone, and it must be
+# that part of the whole frame's render above.
+border=$WORK/border
+mkdir -p "$border"
+blend "$WORK/default.blend" --python scripts/blender/use_addon.py --python-expr "import bpy
+r = bpy.context.scene.render
+r.use_border, r.use_crop_to_border = True, True
+r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.25, 0.75, 0.5, 1.0" \
+    -E PRISM -o "$border/blender_#" -f 1 -- "$ZIP" "$PRISM" "$border/export" 4
+blend --factory-startup --python scripts/blender/compare.py -- \
+    "$border/blender_1.exr" "$WORK/default/blender_1.exr" 16,48,18,36
+grep "^compare:" "$WORK/blender.log" | tail -1 | sed "s/^/border: /"
 # Cancel once tiles are shown; Prism's error reaches Blender's reports.
 blend "$WORK/probe_point.blend" --python scripts/blender/use_addon.py \
     --python scripts/blender/engine_probe.py -- "$ZIP" "$PRISM" "$WORK/engine" 1

@@ -120,10 +120,16 @@ class PrismRenderEngine(bpy.types.RenderEngine):
         tile_dir = os.path.join(folder, "tiles")
         shutil.rmtree(tile_dir, ignore_errors=True)
         command = [prism, "render", toml, "-o", exr, "--checkpoint", tile_dir]
+        # A render border: Blender's result is the border alone, and Prism
+        # renders it alone (its EXR's data window is the border).
+        crop = scene_file.border(scene.render, width, height)
+        if crop is not None:
+            command += ["--crop", ",".join(str(c) for c in crop)]
+        x0, x1, y0, y1 = crop or (0, width, 0, height)
         if scene.render.threads_mode == "FIXED":
             command += ["--threads", str(scene.render.threads)]
         self.update_stats("", "Prism: rendering")
-        watcher = tiles.TileWatcher(tile_dir, height, depsgraph.view_layer.name)
+        watcher = tiles.TileWatcher(tile_dir, (x0, y1), depsgraph.view_layer.name)
         outcome = runner.render(command, self.update_progress, self.test_break,
                                 on_poll=lambda: watcher.poll(self))
         shutil.rmtree(tile_dir, ignore_errors=True)
@@ -134,7 +140,7 @@ class PrismRenderEngine(bpy.types.RenderEngine):
         if outcome.errors:
             return self._fail("\n".join(outcome.errors))
         # Blender calls render() once per view layer; the image is that layer's.
-        result = self.begin_result(0, 0, width, height, layer=depsgraph.view_layer.name)
+        result = self.begin_result(0, 0, x1 - x0, y1 - y0, layer=depsgraph.view_layer.name)
         try:
             result.layers[0].load_from_file(exr)
         except RuntimeError as e:

@@ -64,6 +64,21 @@ def image_size(render):
     )
 
 
+def border(render, width, height):
+    """The render border as Prism's crop (x0, x1, y0, y1, rows from the
+    top), or None. Blender truncates border × size to whole pixels (its
+    render_init_from_main); its rows count from the bottom."""
+    if not render.use_border:
+        return None
+    x0, x1 = int(render.border_min_x * width), int(render.border_max_x * width)
+    y0, y1 = int(render.border_min_y * height), int(render.border_max_y * height)
+    x0, x1 = max(0, min(x0, width)), max(0, min(x1, width))
+    y0, y1 = max(0, min(y0, height)), max(0, min(y1, height))
+    if x0 >= x1 or y0 >= y1:
+        return None
+    return x0, x1, height - y1, height - y0
+
+
 def world_colour(world):
     """The world's background colour: the Background node feeding the
     World Output (colour × strength) when it uses nodes, else its colour.

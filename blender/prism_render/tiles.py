@@ -38,9 +38,11 @@ def read_tile(path):
 class TileWatcher:
     """Hands each tile that appears in `folder` to the engine once."""
 
-    def __init__(self, folder, height, layer=""):
+    def __init__(self, folder, origin, layer=""):
+        """origin: the frame's (x, y) of the result's bottom-left corner,
+        y counted from the top (the bottom edge of a border)."""
         self.folder = folder
-        self.height = height
+        self.origin = origin
         self.layer = layer
         self.seen = set()
 
@@ -65,6 +67,7 @@ class TileWatcher:
                 for i in range(w):
                     j = base + 3 * i
                     rect.append((v[j], v[j + 1], v[j + 2], 1.0))
-            result = engine.begin_result(x0, self.height - y1, w, h, layer=self.layer)
+            ox, oy = self.origin
+            result = engine.begin_result(x0 - ox, oy - y1, w, h, layer=self.layer)
             result.layers[0].passes["Combined"].rect = rect
             engine.end_result(result)

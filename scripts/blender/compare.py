@@ -1,7 +1,7 @@
 """Checks that two EXR images agree: the add-on's render (as Blender saved
 it) against `prism render` of the same export. Each channel within 1/255,
 relative to the value above 1 (Prism's radiance is not clamped).
-Run: blender -b --factory-startup --python compare.py -- A.exr B.exr"""
+Run: blender -b --factory-startup --python compare.py -- A.exr B.exr [X0,X1,Y0,Y1]"""
 
 import os
 import sys
@@ -11,8 +11,13 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(__file__))
 import exr  # noqa: E402
 
-a_path, b_path = sys.argv[sys.argv.index("--") + 1:][:2]
+args = sys.argv[sys.argv.index("--") + 1:]
+a_path, b_path = args[:2]
 a, b = exr.rgb(a_path), exr.rgb(b_path)
+if len(args) > 2:
+    # A render border: B's pixels x0 <= x < x1, y0 <= y < y1 (rows from the bottom).
+    x0, x1, y0, y1 = (int(v) for v in args[2].split(","))
+    b = b[y0:y1, x0:x1]
 if a.shape != b.shape:
     print(f"compare: FAIL: {a_path} is {a.shape[1]}x{a.shape[0]}, {b_path} {b.shape[1]}x{b.shape[0]}")
     sys.exit(1)
