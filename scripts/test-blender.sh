@@ -8,7 +8,8 @@
 #     as a user would) and must equal `prism render` of the same export
 #     (scripts/blender/compare.py);
 #  3. each renders in Cycles and the ratio Prism/Cycles at the centre is
-#     printed (asserted only with the switch in scripts/blender/cycles_probe.py).
+#     printed (asserted only with the switch in scripts/blender/cycles_probe.py);
+#     with the add-on's "Lights: Scene File" it is asserted within 5 %;
 #  4. a render border, cancel and error reports
 #     (scripts/blender/engine_probe.py);
 #  5. F12 in Blender's interface under xvfb (scripts/blender/ui_render.py),
@@ -57,6 +58,16 @@ for name in probe_point probe_spot probe_sun default default_ortho default_portr
     grep "^compare:" "$WORK/blender.log" | tail -1 | sed "s/^/$name: /"
     blend "$WORK/$name.blend" --python scripts/blender/cycles_probe.py -- "$dir/prism.exr" "$dir" "$name"
     grep "^cycles_probe:" "$WORK/blender.log" | tail -2
+    case $name in probe_*|default) ;; *) continue ;; esac
+    # Lights: Scene File: the add-on writes the lights in its own units,
+    # matched to Cycles: asserted within 5 % on the probes now.
+    blend "$WORK/$name.blend" --python scripts/blender/use_addon.py \
+        -E PRISM -o "$dir/scene_lights_#" -f 1 -- "$ZIP" "$PRISM" "$dir/export-scene-lights" "$spp" - SCENE
+    tolerance=()
+    [ "$name" = default ] || tolerance=(0.05)
+    blend "$WORK/$name.blend" --python scripts/blender/cycles_probe.py -- \
+        "$dir/scene_lights_1.exr" "$dir" "$name (Lights: Scene File)" "${tolerance[@]}"
+    grep "^cycles_probe:" "$WORK/blender.log" | tail -2
 done
 # A render border (cropped): Prism renders the border alone, and it must be
 # that part of the whole frame's render above.
@@ -94,7 +105,7 @@ if [ "${1:-}" = "--update-data" ]; then
     for name in probe_point probe_spot probe_sun default default_ortho default_portrait; do
         cp "$WORK/$name/export/scene.glb" "tests/data/blender/$name.glb"
     done
-    cp "$WORK/default/side_by_side.png" docs/images/blender-default.png
+    cp "$WORK/default/side_by_side_scene_lights_1.png" docs/images/blender-default.png
     echo "tests/data/blender/ and docs/images/blender-default.png updated ($version)"
 fi
 echo "test-blender: ok in $(( $(date +%s) - start )) s (the log: $WORK/blender.log)"

@@ -56,6 +56,18 @@ class PrismSettings(bpy.types.PropertyGroup):
         description="Whitted's ambient light Ia as this multiple of the world colour "
                     "(glTF materials have ka = 0.1)",
         default=1.0, min=0.0, soft_max=20.0)
+    lights: bpy.props.EnumProperty(
+        name="Lights",
+        description="Where Prism takes Blender's lights from",
+        items=[
+            ("GLTF", "glTF File",
+             "KHR_lights_punctual in the exported .glb, in the specification's units (as "
+             "`prism render` of any export reads them); hard shadows"),
+            ("SCENE", "Scene File",
+             "Written to scene.toml by the add-on, matched to Cycles on diffuse surfaces; "
+             "a light's radius makes a sphere light (soft shadows); the .glb has no lights"),
+        ],
+        default="GLTF")
     export_dir: bpy.props.StringProperty(
         name="Keep Files In",
         description="Folder for scene.glb, scene.toml and render.exr, kept after the render "
@@ -101,7 +113,8 @@ class PrismRenderEngine(bpy.types.RenderEngine):
         exr = os.path.join(folder, "render.exr")
         self.update_stats("", "Prism: exporting glTF")
         try:
-            export_on_main_thread(self, scene, glb, depsgraph.view_layer)
+            export_on_main_thread(self, scene, glb, depsgraph.view_layer,
+                                  lights=scene.prism.lights == "GLTF")
         except Cancelled:
             return
         except Exception as e:  # the exporter's own failure, whatever it is
@@ -159,13 +172,13 @@ class Cancelled(Exception):
     pass
 
 
-def export_on_main_thread(engine, scene, path, view_layer):
+def export_on_main_thread(engine, scene, path, view_layer, lights=True):
     """The exporter is an operator and needs Blender's main thread; F12 in
     the interface renders on a job thread. There the export is handed to
     a timer (timers run on the main thread, whose event loop goes on during
     a render) and this thread waits for it, or for Esc."""
     if threading.current_thread() is threading.main_thread():
-        export_gltf(scene, path, view_layer)
+        export_gltf(scene, path, view_layer, lights)
         return
     done = threading.Event()
     outcome = {}
@@ -175,7 +188,7 @@ def export_on_main_thread(engine, scene, path, view_layer):
         try:
             if scene.frame_current != frame:
                 scene.frame_set(frame)
-            export_gltf(scene, path, view_layer)
+            export_gltf(scene, path, view_layer, lights)
         except Exception as e:  # handed to the render thread
             outcome["error"] = e
         done.set()
@@ -190,7 +203,7 @@ def export_on_main_thread(engine, scene, path, view_layer):
         raise outcome["error"]
 
 
-def export_gltf(scene, path, view_layer=None):
+def export_gltf(scene, path, view_layer=None, lights=True):
     """Blender's bundled glTF exporter with the options a render needs;
     options this Blender's exporter lacks are left out."""
     wanted = {
@@ -200,7 +213,7 @@ def export_gltf(scene, path, view_layer=None):
         "export_yup": True,            # Prism's world is +Y up, as glTF's
         "export_apply": True,          # modifiers applied
         "export_cameras": True,        # the .glb alone renders too
-        "export_lights": True,         # KHR_lights_punctual
+        "export_lights": lights,       # KHR_lights_punctual
         # Blender 3.6+: the specification's units (W to cd at 683 lm/W), as
         # 3.4 always writes them.
         "export_import_convert_lighting_mode": "SPEC",
@@ -255,6 +268,7 @@ class RENDER_PT_prism(bpy.types.Panel):
         layout.prop(settings, "spp")
         layout.prop(settings, "max_depth")
         layout.prop(settings, "ambient_from_world")
+        layout.prop(settings, "lights")
         layout.prop(settings, "export_dir")
 
 

@@ -21,15 +21,9 @@ import math
 # exposure when it shows the render (so it is never applied twice).
 HAS_EXPOSURE = False
 
-# `light_scale` on a mesh object. With it, the model's own glTF lights are
-# switched off (`light_scale = 0`) and every Blender light is written here
-# instead, a light with a radius (`shadow_soft_size`) as a sphere light
-# for soft shadows.
-HAS_LIGHT_SCALE = False
-
 # The glTF loader's diffuse term is base colour / π (issue 15, item 1).
-# Only the intensities of the lights written here (with HAS_LIGHT_SCALE)
-# depend on it.
+# Only the lights this file writes ("Lights: Scene File") depend on it:
+# their intensities are matched to Cycles on a glTF material.
 GLTF_DIFFUSE_OVER_PI = False
 
 
@@ -157,23 +151,27 @@ def _vec(*c):
 
 
 def light_tables(depsgraph):
-    """Blender's lights as scene-file lights (only with HAS_LIGHT_SCALE,
-    when the glTF copies can be switched off). Intensities in the scene
-    file's Whitted units, matched to Cycles on a glTF material's diffuse
-    surface: a point light of P watts gives radiance albedo/π · P/(4π d²)."""
-    lines, notes = [], []
+    """Blender's lights as scene-file lights ("Lights: Scene File", the
+    .glb then has none), a light with a radius (`shadow_soft_size`) as a
+    sphere light for soft shadows. Intensities in the scene file's Whitted
+    units, matched to Cycles on a glTF material's diffuse surface: a point
+    light of P watts gives radiance albedo/π · P/(4π d²), a sun of E W/m²
+    albedo/π · E."""
+    lines, notes, names = [], [], {}
     over_pi = 1.0 if GLTF_DIFFUSE_OVER_PI else 1.0 / math.pi
     for inst in depsgraph.object_instances:
         obj = inst.object
         if obj.type != "LIGHT":
             continue
         light = obj.data
-        name = toml_string(f"{obj.name}")
+        # Instanced lights share a name; a scene-file table may not.
+        count = names[obj.name] = names.get(obj.name, 0) + 1
+        name = toml_string(obj.name if count == 1 else f"{obj.name} {count}")
         m = inst.matrix_world
         colour = toml_vector(light.color)
         if light.type in {"POINT", "SPOT"}:
             if light.type == "SPOT":
-                notes.append(f"light '{obj.name}': spot cones are not written yet; a point light")
+                notes.append(f"light '{obj.name}': Prism has no spot cone yet; a point light")
             r = light.shadow_soft_size
             lines += [f"[lights.{name}]",
                       f'type = "{"sphere" if r > 0 else "point"}"',
@@ -189,6 +187,8 @@ def light_tables(depsgraph):
                       f"direction = {toml_vector(to_y_up(d))}",
                       f"color = {colour}",
                       f"intensity = {toml_number(light.energy * over_pi)}", ""]
+            if light.angle > 0:
+                notes.append(f"light '{obj.name}': a sun's angle is not carried; hard shadows")
         else:
             notes.append(f"light '{obj.name}': {light.type.lower()} lights are not supported; skipped")
     return lines, notes
@@ -228,21 +228,19 @@ def scene_toml(depsgraph, glb_name, settings):
         scene.camera, width, height, (render.pixel_aspect_x, render.pixel_aspect_y))
     lines += cam_lines + [""]
     notes += cam_notes
-    if HAS_LIGHT_SCALE:
+    if settings.lights == "SCENE":
         light_lines, light_notes = light_tables(depsgraph)
         lines += light_lines
         notes += light_notes
     elif any(o.type == "LIGHT" and o.data.type in {"POINT", "SPOT"} and o.data.shadow_soft_size > 0
              for o in scene.objects):
-        notes.append("light radii (soft shadows) need the scene file's light_scale, not in Prism yet; hard shadows")
+        notes.append("light radii (soft shadows) are carried with Lights: Scene File; hard shadows")
     lines += [
         "[[objects]]",
         'type = "mesh"',
         f"name = {toml_string(scene.name)}",
         f"file = {toml_string(glb_name)}",
     ]
-    if HAS_LIGHT_SCALE:
-        lines.append("light_scale = 0")
     return "\n".join(lines) + "\n", notes
 
 

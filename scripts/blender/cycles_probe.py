@@ -1,8 +1,8 @@
 """Renders the opened scene in Cycles (its own low sample count, CPU) and
 prints the ratio of Prism's image to Cycles' at the image centre (on the
 diffuse plane in the probe scenes); writes OUT/cycles.exr and a
-side-by-side OUT/side_by_side.png (Cycles left, Prism right).
-Run: blender -b SCENE.blend --python cycles_probe.py -- PRISM.exr OUT NAME
+side-by-side OUT/side_by_side_PRISM.png (Cycles left, Prism right).
+Run: blender -b SCENE.blend --python cycles_probe.py -- PRISM.exr OUT NAME [TOLERANCE]
 """
 
 import os
@@ -24,7 +24,10 @@ ASSERT_WITHIN = None
 if os.environ.get("PRISM_ASSERT_CYCLES"):
     ASSERT_WITHIN = float(os.environ["PRISM_ASSERT_CYCLES"])
 
-prism_path, out, name = sys.argv[sys.argv.index("--") + 1:][:3]
+args = sys.argv[sys.argv.index("--") + 1:]
+prism_path, out, name = args[:3]
+if len(args) > 3:  # this run's own tolerance (the add-on's own light units)
+    ASSERT_WITHIN = float(args[3])
 scene = bpy.context.scene
 scene.render.engine = "CYCLES"
 scene.cycles.device = "CPU"
@@ -32,7 +35,8 @@ scene.cycles.use_denoising = False  # Debian builds Cycles without OpenImageDeno
 scene.render.image_settings.file_format = "OPEN_EXR"
 scene.render.image_settings.color_depth = "32"
 scene.render.filepath = os.path.join(out, "cycles.exr")
-bpy.ops.render.render(write_still=True)
+if not os.path.exists(scene.render.filepath):  # one Cycles render per scene
+    bpy.ops.render.render(write_still=True)
 cycles, prism = exr.rgb(os.path.join(out, "cycles.exr")), exr.rgb(prism_path)
 c, p = exr.centre(cycles), exr.centre(prism)
 ratio = float(p.mean() / c.mean()) if c.mean() > 0 else float("inf")
@@ -59,7 +63,7 @@ h, w = srgb.shape[:2]
 rgba = np.concatenate([np.clip(srgb, 0, 1), np.ones((h, w, 1), np.float32)], axis=2)
 image = bpy.data.images.new("side by side", w, h, alpha=False)
 image.pixels.foreach_set(rgba.astype(np.float32).ravel())
-image.filepath_raw = os.path.join(out, "side_by_side.png")
+image.filepath_raw = os.path.join(out, f"side_by_side_{os.path.splitext(os.path.basename(prism_path))[0]}.png")
 image.file_format = "PNG"
 image.save()
 
