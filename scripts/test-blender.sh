@@ -10,7 +10,7 @@
 #  3. each renders in Cycles and the ratio Prism/Cycles at the centre is
 #     printed (asserted only with the switch in scripts/blender/cycles_probe.py);
 #     with the add-on's "Lights: Scene File" it is asserted within 5 %;
-#  4. a render border, cancel and error reports
+#  4. a render border, an animation, cancel and error reports
 #     (scripts/blender/engine_probe.py);
 #  5. F12 in Blender's interface under xvfb (scripts/blender/ui_render.py),
 #     checked against `prism render` of its export.
@@ -81,6 +81,15 @@ r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.25, 0.75, 0.5
 blend --factory-startup --python scripts/blender/compare.py -- \
     "$border/blender_1.exr" "$WORK/default/blender_1.exr" 16,48,18,36
 grep "^compare:" "$WORK/blender.log" | tail -1 | sed "s/^/border: /"
+# An animation (-a): each frame is exported in its own pose.
+anim=$WORK/anim
+mkdir -p "$anim"
+blend "$WORK/default_anim.blend" --python scripts/blender/use_addon.py \
+    -E PRISM -o "$anim/frame_#" -a -- "$ZIP" "$PRISM" "$anim/export" 1
+"$PRISM" render "$anim/export/scene.toml" -o "$anim/prism.exr" --quiet
+blend --factory-startup --python scripts/blender/compare.py -- "$anim/frame_3.exr" "$anim/prism.exr"
+blend --factory-startup --python scripts/blender/compare.py -- --differ "$anim/frame_1.exr" "$anim/frame_3.exr"
+grep "^compare:" "$WORK/blender.log" | tail -2 | sed "s/^/animation: /"
 # Cancel once tiles are shown; Prism's error reaches Blender's reports.
 blend "$WORK/probe_point.blend" --python scripts/blender/use_addon.py \
     --python scripts/blender/engine_probe.py -- "$ZIP" "$PRISM" "$WORK/engine" 1

@@ -28,8 +28,9 @@ GLTF_DIFFUSE_OVER_PI = False
 
 
 def toml_string(s):
-    """A TOML basic string: JSON's escaping without \\u surrogate pairs."""
-    return json.dumps(str(s), ensure_ascii=False)
+    """A TOML basic string: JSON's escaping without \\u surrogate pairs,
+    and DEL, which TOML also wants escaped."""
+    return json.dumps(str(s), ensure_ascii=False).replace("\x7f", "\\u007f")
 
 
 def toml_number(x):
@@ -208,7 +209,8 @@ def scene_toml(depsgraph, glb_name, settings):
         notes.append(note)
     ambient = tuple(c * settings.ambient_from_world for c in background)
     lines = [
-        f"# Written by the Prism add-on for Blender {_blender_version()} from '{scene.name}'.",
+        # Escaped: a comment may not hold control characters either.
+        f"# Written by the Prism add-on for Blender {_blender_version()} from {toml_string(scene.name)}.",
         f"# Render it again: prism render {_name_hint()} -o image.png",
         "",
         "[render]",

@@ -45,6 +45,12 @@ scene = bpy.context.scene
 scene.render.engine = "PRISM"
 scene.render.resolution_x, scene.render.resolution_y = 320, 240
 scene.prism.spp = 1024
+# Names are text in the scene file: quotes, backslashes, control
+# characters, DEL and non-ASCII must come through (Prism parses it before
+# the first tile); the light goes there with Lights: Scene File.
+scene.name = 'a "scene"\\ with\tall\x7f kinds ☃ \U0001F600\nof name'
+bpy.data.objects["point light"].name = 'a "light" \x01 ☃'
+scene.prism.lights = "SCENE"
 start = time.monotonic()
 bpy.ops.render.render()
 took = time.monotonic() - start

@@ -4,6 +4,7 @@
     looking straight down, black world, Standard view transform. Nothing
     else is in the scene, so Cycles has no indirect light to add.
   default: Blender's factory startup scene (cube, light, camera);
+  default_anim: the same with the cube moving over frames 1 to 3;
   default_ortho: the same through an orthographic camera;
   default_portrait: the same at 36x64.
 All at 64x48 (the default scene 64x36, its 16:9).
@@ -25,6 +26,16 @@ scene.render.resolution_x, scene.render.resolution_y = 64, 36
 scene.render.resolution_percentage = 100
 scene.cycles.samples = 16
 bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "default.blend"))
+# The cube keyed to move (frames 1 to 3): an animation renders each frame's pose.
+cube = bpy.data.objects["Cube"]
+cube.keyframe_insert("location", frame=1)
+cube.location = (0.0, 2.0, 0.0)
+cube.keyframe_insert("location", frame=3)
+scene.frame_start, scene.frame_end = 1, 3
+scene.frame_set(1)
+bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "default_anim.blend"), copy=True)
+cube.animation_data_clear()
+cube.location = (0.0, 0.0, 0.0)
 # The same through an orthographic camera, and a portrait frame (the
 # sensor then fits the height): the framing tests of the camera mapping.
 camera = scene.camera
