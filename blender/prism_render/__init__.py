@@ -125,10 +125,13 @@ class PrismRenderEngine(bpy.types.RenderEngine):
             return self._fail(str(e))
         for note in notes:
             self.report({"WARNING"}, f"Prism: {note}")
-        with open(toml, "w", encoding="utf-8") as f:
-            f.write(text)
-        if os.path.exists(exr):
-            os.remove(exr)
+        try:
+            with open(toml, "w", encoding="utf-8") as f:
+                f.write(text)
+            if os.path.exists(exr):
+                os.remove(exr)  # a stale image is never loaded
+        except OSError as e:
+            return self._fail(f"cannot write in {folder}: {e}")
         # Prism saves each finished tile here; they are shown as they come.
         tile_dir = os.path.join(folder, "tiles")
         shutil.rmtree(tile_dir, ignore_errors=True)
