@@ -11,6 +11,7 @@ import sys
 import bpy
 import numpy as np
 
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 sys.path.insert(0, os.path.dirname(__file__))
 import exr  # noqa: E402
 
