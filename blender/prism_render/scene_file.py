@@ -1,0 +1,255 @@
+"""The TOML scene that goes beside the exported .glb: what glTF cannot
+carry (image size, samples, background, the active camera's framing).
+
+Plain Python apart from the `bpy` objects passed in, so the mapping can be
+read (and tested) on its own.
+"""
+
+import json
+import math
+
+# ---------------------------------------------------------------------------
+# Scene-file keys that Prism does not have yet (issue 15, items 1-2, being
+# built in the library). Each switch turns on one key; nothing else in the
+# add-on changes. Until a switch is on, the key is never written, because
+# Prism refuses unknown keys.
+# ---------------------------------------------------------------------------
+
+# `[render] exposure` (EV), from Blender's Color Management exposure. Only
+# the 8-bit output of a standalone `prism render scene.toml -o x.png` uses
+# it: the EXR the add-on reads stays linear, and Blender applies its own
+# exposure when it shows the render (so it is never applied twice).
+HAS_EXPOSURE = False
+
+# The glTF loader's diffuse term is base colour / π (issue 15, item 1).
+# Only the lights this file writes ("Lights: Scene File") depend on it:
+# their intensities are matched to Cycles on a glTF material.
+GLTF_DIFFUSE_OVER_PI = False
+
+
+def toml_string(s):
+    """A TOML basic string: JSON's escaping without \\u surrogate pairs,
+    and DEL, which TOML also wants escaped."""
+    return json.dumps(str(s), ensure_ascii=False).replace("\x7f", "\\u007f")
+
+
+def toml_number(x):
+    x = float(x)
+    if not math.isfinite(x):
+        raise ValueError(f"{x} is not a finite number")
+    return f"{x + 0.0:.9g}"  # + 0.0: no "-0"
+
+
+def toml_vector(v):
+    return "[" + ", ".join(toml_number(c) for c in v) + "]"
+
+
+def to_y_up(v):
+    """Blender's +Z-up world to glTF's (and Prism's) +Y-up, as the glTF
+    exporter converts it with export_yup: (x, y, z) -> (x, z, -y)."""
+    return (v[0], v[2], -v[1])
+
+
+def image_size(render):
+    """Pixels Blender renders: the resolution at its percentage."""
+    scale = render.resolution_percentage / 100.0
+    return (
+        max(1, int(render.resolution_x * scale)),
+        max(1, int(render.resolution_y * scale)),
+    )
+
+
+def border(render, width, height):
+    """The render border as Prism's crop (x0, x1, y0, y1, rows from the
+    top), or None. Blender truncates border × size to whole pixels (its
+    render_init_from_main); its rows count from the bottom."""
+    if not render.use_border:
+        return None
+    x0, x1 = int(render.border_min_x * width), int(render.border_max_x * width)
+    y0, y1 = int(render.border_min_y * height), int(render.border_max_y * height)
+    x0, x1 = max(0, min(x0, width)), max(0, min(x1, width))
+    y0, y1 = max(0, min(y0, height)), max(0, min(y1, height))
+    if x0 >= x1 or y0 >= y1:
+        return None
+    return x0, x1, height - y1, height - y0
+
+
+def world_colour(world):
+    """The world's background colour: the Background node feeding the
+    World Output (colour × strength) when it uses nodes, else its colour.
+    A texture or anything else linked into it is not followed."""
+    if world is None:
+        return (0.0, 0.0, 0.0), None
+    if world.use_nodes and world.node_tree is not None:
+        output = next(
+            (n for n in world.node_tree.nodes
+             if n.type == "OUTPUT_WORLD" and n.is_active_output),
+            None,
+        )
+        links = output.inputs["Surface"].links if output else ()
+        if links:
+            node = links[0].from_node
+            if node.type == "BACKGROUND":
+                colour, strength = node.inputs["Color"], node.inputs["Strength"]
+                note = None
+                if colour.is_linked or strength.is_linked:
+                    note = "the world's Background node has linked inputs; Prism uses their unlinked values"
+                s = strength.default_value
+                return tuple(max(0.0, c * s) for c in colour.default_value[:3]), note
+            return (0.0, 0.0, 0.0), (
+                f"the world shader ({node.bl_label}) is not a plain Background; Prism's background is black")
+        return (0.0, 0.0, 0.0), None
+    return tuple(max(0.0, c) for c in world.color[:3]), None
+
+
+def camera_table(cam_obj, width, height, pixel_aspect):
+    """`[camera]` for Blender's active camera: position, look_at, up and the
+    field of view along the axis Blender fits the sensor to. Returns the
+    lines and a list of notes for what Prism cannot show."""
+    notes = []
+    cam = cam_obj.data
+    m = cam_obj.matrix_world
+    position = m.translation
+    forward = (m.to_3x3() @ _vec(0.0, 0.0, -1.0)).normalized()
+    up = (m.to_3x3() @ _vec(0.0, 1.0, 0.0)).normalized()
+    look_at = position + forward
+    # The sensor fits the wider side of the (pixel-aspect-corrected) frame
+    # under AUTO; HORIZONTAL and VERTICAL say which side.
+    wide = width * pixel_aspect[0] >= height * pixel_aspect[1]
+    if cam.sensor_fit == "VERTICAL":
+        axis, sensor = "vertical", cam.sensor_height
+    elif cam.sensor_fit == "HORIZONTAL":
+        axis, sensor = "horizontal", cam.sensor_width
+    else:
+        axis, sensor = ("horizontal" if wide else "vertical"), cam.sensor_width
+    lines = ["[camera]"]
+    if cam.type == "PERSP":
+        fov = math.degrees(2.0 * math.atan(sensor / (2.0 * cam.lens)))
+        lines.append('type = "perspective"')
+        lines.append(f"fov = {toml_number(fov)}")
+        lines.append(f'fov_axis = "{axis}"')
+    elif cam.type == "ORTHO":
+        # ortho_scale spans the fitted axis; Prism takes the height.
+        view_height = cam.ortho_scale if axis == "vertical" else cam.ortho_scale * height / width
+        lines.append('type = "orthographic"')
+        lines.append(f"view_height = {toml_number(view_height)}")
+    else:
+        raise ValueError(
+            f"camera '{cam_obj.name}' is panoramic; Prism has perspective and orthographic cameras only")
+    lines.append(f"position = {toml_vector(to_y_up(position))}")
+    lines.append(f"look_at = {toml_vector(to_y_up(look_at))}")
+    lines.append(f"up = {toml_vector(to_y_up(up))}")
+    if cam.shift_x != 0.0 or cam.shift_y != 0.0:
+        notes.append(f"camera '{cam_obj.name}': lens shift is ignored (Prism has none)")
+    if tuple(pixel_aspect) != (1.0, 1.0):
+        notes.append("a pixel aspect other than 1:1 is ignored")
+    return lines, notes
+
+
+def _vec(*c):
+    from mathutils import Vector
+    return Vector(c)
+
+
+def light_tables(depsgraph):
+    """Blender's lights as scene-file lights ("Lights: Scene File", the
+    .glb then has none), a light with a radius (`shadow_soft_size`) as a
+    sphere light for soft shadows. Intensities in the scene file's Whitted
+    units, matched to Cycles on a glTF material's diffuse surface: a point
+    light of P watts gives radiance albedo/π · P/(4π d²), a sun of E W/m²
+    albedo/π · E."""
+    lines, notes, names = [], [], {}
+    over_pi = 1.0 if GLTF_DIFFUSE_OVER_PI else 1.0 / math.pi
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        if obj.type != "LIGHT":
+            continue
+        light = obj.data
+        # Instanced lights share a name; a scene-file table may not.
+        count = names[obj.name] = names.get(obj.name, 0) + 1
+        name = toml_string(obj.name if count == 1 else f"{obj.name} {count}")
+        m = inst.matrix_world
+        colour = toml_vector(light.color)
+        if light.type in {"POINT", "SPOT"}:
+            if light.type == "SPOT":
+                notes.append(f"light '{obj.name}': Prism has no spot cone yet; a point light")
+            r = light.shadow_soft_size
+            lines += [f"[lights.{name}]",
+                      f'type = "{"sphere" if r > 0 else "point"}"',
+                      f"position = {toml_vector(to_y_up(m.translation))}"]
+            if r > 0:
+                lines.append(f"radius = {toml_number(r)}")
+            lines += [f"color = {colour}",
+                      f"intensity = {toml_number(light.energy / (4.0 * math.pi) * over_pi)}",
+                      'falloff = "inverse_square"', ""]
+        elif light.type == "SUN":
+            d = (m.to_3x3() @ _vec(0.0, 0.0, -1.0)).normalized()
+            lines += [f"[lights.{name}]", 'type = "directional"',
+                      f"direction = {toml_vector(to_y_up(d))}",
+                      f"color = {colour}",
+                      f"intensity = {toml_number(light.energy * over_pi)}", ""]
+            if light.angle > 0:
+                notes.append(f"light '{obj.name}': a sun's angle is not carried; hard shadows")
+        else:
+            notes.append(f"light '{obj.name}': {light.type.lower()} lights are not supported; skipped")
+    return lines, notes
+
+
+def scene_toml(depsgraph, glb_name, settings):
+    """The whole scene file; `settings` is the scene's PrismSettings.
+    Returns (text, notes)."""
+    scene = depsgraph.scene
+    render = scene.render
+    width, height = image_size(render)
+    notes = []
+    if scene.camera is None:
+        raise ValueError("the scene has no active camera")
+    background, note = world_colour(scene.world)
+    if note:
+        notes.append(note)
+    ambient = tuple(c * settings.ambient_from_world for c in background)
+    lines = [
+        # Escaped: a comment may not hold control characters either.
+        f"# Written by the Prism add-on for Blender {_blender_version()} from {toml_string(scene.name)}.",
+        f"# Render it again: prism render {_name_hint()} -o image.png",
+        "",
+        "[render]",
+        f"width = {width}",
+        f"height = {height}",
+        f"spp = {int(settings.spp)}",
+        f"max_depth = {int(settings.max_depth)}",
+        f"background = {toml_vector(background)}",
+        f"ambient = {toml_vector(ambient)}",
+    ]
+    if HAS_EXPOSURE:
+        lines.append(f"exposure = {toml_number(scene.view_settings.exposure)}")
+    elif scene.view_settings.exposure != 0.0:
+        notes.append("Prism's scene file has no exposure yet; Blender applies its exposure to the render it shows")
+    lines.append("")
+    cam_lines, cam_notes = camera_table(
+        scene.camera, width, height, (render.pixel_aspect_x, render.pixel_aspect_y))
+    lines += cam_lines + [""]
+    notes += cam_notes
+    if settings.lights == "SCENE":
+        light_lines, light_notes = light_tables(depsgraph)
+        lines += light_lines
+        notes += light_notes
+    elif any(o.type == "LIGHT" and o.data.type in {"POINT", "SPOT"} and o.data.shadow_soft_size > 0
+             for o in scene.objects):
+        notes.append("light radii (soft shadows) are carried with Lights: Scene File; hard shadows")
+    lines += [
+        "[[objects]]",
+        'type = "mesh"',
+        f"name = {toml_string(scene.name)}",
+        f"file = {toml_string(glb_name)}",
+    ]
+    return "\n".join(lines) + "\n", notes
+
+
+def _blender_version():
+    import bpy
+    return bpy.app.version_string
+
+
+def _name_hint():
+    return "scene.toml"

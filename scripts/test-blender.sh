@@ -1,0 +1,120 @@
+#!/bin/bash
+# Prism and Blender (issue 15, items 8-9): installs Debian's blender and
+# python3-numpy (the glTF exporter needs numpy; the package does not pull
+# it in) and xvfb when absent, builds prism and the add-on zip, then headless:
+#  1. scripts/blender/make_scenes.py builds the probes (a diffuse plane
+#     under a point, spot or sun light) and Blender's default scene;
+#  2. each renders through the add-on (`-E PRISM -f 1`, the zip installed
+#     as a user would) and must equal `prism render` of the same export
+#     (scripts/blender/compare.py);
+#  3. each renders in Cycles and the ratio Prism/Cycles at the centre is
+#     printed (asserted only with the switch in scripts/blender/cycles_probe.py);
+#     with the add-on's "Lights: Scene File" it is asserted within 5 %;
+#  4. a render border, an animation, cancel and error reports
+#     (scripts/blender/engine_probe.py);
+#  5. F12 in Blender's interface under xvfb (scripts/blender/ui_render.py),
+#     checked against `prism render` of its export.
+# Work files: target/blender-test/. With --update-data the exports are
+# copied to tests/data/blender/ (commit them, with the Blender version).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+# xvfb: F12 in Blender's interface renders on a job thread, a path of its
+# own; a virtual display lets the test take it.
+if ! command -v blender >/dev/null || ! dpkg -s python3-numpy >/dev/null 2>&1 \
+    || ! command -v xvfb-run >/dev/null; then
+    echo "installing blender, python3-numpy and xvfb from Debian ..." >&2
+    apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq blender python3-numpy xvfb xauth >/dev/null
+fi
+cargo build --release --locked --quiet
+scripts/build-blender-addon.sh >/dev/null
+PRISM=$PWD/target/release/prism
+ZIP=$PWD/target/prism_render.zip
+WORK=$PWD/target/blender-test
+rm -rf "$WORK"
+mkdir -p "$WORK"
+# The add-on is installed here, not into the user's own Blender.
+export BLENDER_USER_SCRIPTS=$WORK/user-scripts
+blend() { blender --background --python-exit-code 1 "$@" >>"$WORK/blender.log" 2>&1 || {
+    echo "blender failed: $*; the end of $WORK/blender.log:" >&2; tail -30 "$WORK/blender.log" >&2; exit 1; }; }
+start=$(date +%s)
+blender --version | head -1
+blend --factory-startup --python scripts/blender/make_scenes.py -- "$WORK"
+for name in probe_point probe_spot probe_sun default default_ortho default_portrait; do
+    dir=$WORK/$name
+    mkdir -p "$dir"
+    spp=1
+    case $name in default*) spp=4 ;; esac
+    # Through the add-on, as `blender -b FILE -E PRISM -f 1` does.
+    blend "$WORK/$name.blend" --python scripts/blender/use_addon.py \
+        -E PRISM -o "$dir/blender_#" -f 1 -- "$ZIP" "$PRISM" "$dir/export" "$spp"
+    if [ ! -f "$dir/blender_1.exr" ]; then
+        echo "FAIL: $name: the add-on rendered nothing; $WORK/blender.log says:" >&2
+        grep -i "error" "$WORK/blender.log" | tail -10 >&2
+        exit 1
+    fi
+    "$PRISM" render "$dir/export/scene.toml" -o "$dir/prism.exr" --quiet
+    blend --factory-startup --python scripts/blender/compare.py -- "$dir/blender_1.exr" "$dir/prism.exr"
+    grep "^compare:" "$WORK/blender.log" | tail -1 | sed "s/^/$name: /"
+    blend "$WORK/$name.blend" --python scripts/blender/cycles_probe.py -- "$dir/prism.exr" "$dir" "$name"
+    grep "^cycles_probe:" "$WORK/blender.log" | tail -2
+    case $name in probe_*|default) ;; *) continue ;; esac
+    # Lights: Scene File: the add-on writes the lights in its own units,
+    # matched to Cycles: asserted within 5 % on the probes now.
+    blend "$WORK/$name.blend" --python scripts/blender/use_addon.py \
+        -E PRISM -o "$dir/scene_lights_#" -f 1 -- "$ZIP" "$PRISM" "$dir/export-scene-lights" "$spp" - SCENE
+    tolerance=()
+    [ "$name" = default ] || tolerance=(0.05)
+    blend "$WORK/$name.blend" --python scripts/blender/cycles_probe.py -- \
+        "$dir/scene_lights_1.exr" "$dir" "$name (Lights: Scene File)" "${tolerance[@]}"
+    grep "^cycles_probe:" "$WORK/blender.log" | tail -2
+done
+# A render border (cropped): Prism renders the border alone, and it must be
+# that part of the whole frame's render above.
+border=$WORK/border
+mkdir -p "$border"
+blend "$WORK/default.blend" --python scripts/blender/use_addon.py --python-expr "import bpy
+r = bpy.context.scene.render
+r.use_border, r.use_crop_to_border = True, True
+r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.25, 0.75, 0.5, 1.0" \
+    -E PRISM -o "$border/blender_#" -f 1 -- "$ZIP" "$PRISM" "$border/export" 4
+blend --factory-startup --python scripts/blender/compare.py -- \
+    "$border/blender_1.exr" "$WORK/default/blender_1.exr" 16,48,18,36
+grep "^compare:" "$WORK/blender.log" | tail -1 | sed "s/^/border: /"
+# An animation (-a): each frame is exported in its own pose.
+anim=$WORK/anim
+mkdir -p "$anim"
+blend "$WORK/default_anim.blend" --python scripts/blender/use_addon.py \
+    -E PRISM -o "$anim/frame_#" -a -- "$ZIP" "$PRISM" "$anim/export" 1
+"$PRISM" render "$anim/export/scene.toml" -o "$anim/prism.exr" --quiet
+blend --factory-startup --python scripts/blender/compare.py -- "$anim/frame_3.exr" "$anim/prism.exr"
+blend --factory-startup --python scripts/blender/compare.py -- --differ "$anim/frame_1.exr" "$anim/frame_3.exr"
+grep "^compare:" "$WORK/blender.log" | tail -2 | sed "s/^/animation: /"
+# Cancel once tiles are shown; Prism's error reaches Blender's reports.
+blend "$WORK/probe_point.blend" --python scripts/blender/use_addon.py \
+    --python scripts/blender/engine_probe.py -- "$ZIP" "$PRISM" "$WORK/engine" 1
+grep "^engine_probe:" "$WORK/blender.log"
+# F12 in the interface (under a virtual display): the add-on runs on the
+# render job's thread and hands the export to the main thread.
+ui=$WORK/ui
+mkdir -p "$ui"
+timeout 300 xvfb-run -a -s "-screen 0 1280x800x24" blender --factory-startup \
+    "$WORK/default.blend" --python scripts/blender/use_addon.py --python scripts/blender/ui_render.py \
+    -- "$ZIP" "$PRISM" "$ui/export" 4 "$ui/f12.exr" >>"$WORK/blender.log" 2>&1 || true
+grep "^ui_render:" "$WORK/blender.log" || true
+if [ ! -f "$ui/f12.exr" ]; then
+    echo "FAIL: F12 in the interface rendered nothing; see $WORK/blender.log" >&2
+    exit 1
+fi
+"$PRISM" render "$ui/export/scene.toml" -o "$ui/prism.exr" --quiet
+blend --factory-startup --python scripts/blender/compare.py -- "$ui/f12.exr" "$ui/prism.exr"
+grep "^compare:" "$WORK/blender.log" | tail -1 | sed "s/^/F12: /"
+if [ "${1:-}" = "--update-data" ]; then
+    version=$(blender --version | head -1)
+    for name in probe_point probe_spot probe_sun default default_ortho default_portrait; do
+        cp "$WORK/$name/export/scene.glb" "tests/data/blender/$name.glb"
+    done
+    cp "$WORK/default/side_by_side_scene_lights_1.png" docs/images/blender-default.png
+    echo "tests/data/blender/ and docs/images/blender-default.png updated ($version)"
+fi
+echo "test-blender: ok in $(( $(date +%s) - start )) s (the log: $WORK/blender.log)"
