@@ -27,12 +27,31 @@ use gltf::json::mesh::{Mode, Semantic};
 use gltf::json::validation::Checked;
 use gltf::json::{self, Index, Root};
 
-use super::{Model, ModelCamera, ModelError};
+use super::{Model, ModelCamera, ModelError, ModelProjection};
 use crate::geometry::MeshData;
 use crate::lights::{Light, LightShape};
 use crate::limits::{MAX_MODEL_PLACEMENTS, MAX_VALUE};
 use crate::scene::resources::{Resources, TextureKey};
 use crate::shading::{Fresnel, Highlight, Material, Texture};
+
+/// Luminous efficacy the glTF specification converts with (lm/W), as
+/// Blender's exporter does.
+pub const LUMENS_PER_WATT: f64 = 683.0;
+
+/// A KHR_lights_punctual intensity — candela (lm/sr) for point and spot
+/// lights, lux (lm/m²) for directional ones — in radiometric units (W/sr,
+/// W/m²), which is what Prism's light intensity Il is.
+pub fn photometric_to_radiometric(intensity: f64) -> f64 {
+    intensity / LUMENS_PER_WATT
+}
+
+/// The Whitted coefficient of a Lambertian term of reflectance `albedo`:
+/// albedo / π, the glTF metallic-roughness model's diffuse BRDF (and
+/// Cycles'), so that kd·Od·Il·N·L/d² is the radiance a Lambertian surface
+/// of that albedo returns.
+pub fn lambertian(albedo: f64) -> f64 {
+    albedo / std::f64::consts::PI
+}
 
 const SUPPORTED: &[&str] = &[
     "KHR_lights_punctual",
@@ -104,12 +123,18 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
         materials: Vec::new(),
         warnings: Vec::new(),
         lights: Vec::new(),
-        camera: None,
+        cameras: Vec::new(),
     };
-    // glTF mesh index → index into model.meshes: a mesh used by several
-    // nodes (or by a node placed many times) is read and stored once.
-    let mut mesh_slots: HashMap<usize, usize> = HashMap::new();
-    let mut stack: Vec<(usize, DMat4)> = roots.iter().map(|&n| (n, DMat4::IDENTITY)).collect();
+    // glTF mesh index → index into model.meshes (`None`: no triangles): a
+    // mesh used by several nodes (or by a node placed many times) is read
+    // and stored once.
+    let mut mesh_slots: HashMap<usize, Option<usize>> = HashMap::new();
+    // Depth first in node order (children pushed in reverse), so "the
+    // first camera" is the first one met reading the scene's nodes in
+    // order, as Blender lists them.
+    let mut stack: Vec<(usize, DMat4)> =
+        roots.iter().rev().map(|&n| (n, DMat4::IDENTITY)).collect();
+    let mut any_mesh = false;
     while let Some((n, parent)) = stack.pop() {
         let node = &root.nodes[n];
         let world = parent * local_transform(node);
@@ -118,11 +143,11 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
                 "nodes[{n}]: its world transform overflows (not finite)"
             )));
         }
-        stack.extend(graph.children[n].iter().map(|&c| (c, world)));
-        if let Some(c) = node.camera {
-            reader
-                .camera(n, c.value(), &world, &mut model.camera)
-                .map_err(err)?;
+        stack.extend(graph.children[n].iter().rev().map(|&c| (c, world)));
+        if let Some(c) = node.camera
+            && let Some(camera) = reader.camera(n, c.value(), &world).map_err(err)?
+        {
+            model.cameras.push(camera);
         }
         if let Some(light) = node
             .extensions
@@ -133,6 +158,7 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
             model.lights.push(l);
         }
         let Some(mesh) = node.mesh else { continue };
+        any_mesh = true;
         if DMat3::from_mat4(world).determinant().abs() < 1e-12 {
             return Err(err(format!(
                 "nodes[{n}]: its world transform is singular (a zero scale)"
@@ -144,12 +170,25 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
                 let data = reader
                     .mesh(mesh.value(), n, default_slot, &mut needs_default)
                     .map_err(err)?;
-                model.meshes.push(data);
-                mesh_slots.insert(mesh.value(), model.meshes.len() - 1);
-                model.meshes.len() - 1
+                // Only lines or points: skipped (already warned about).
+                let slot = (!data.triangles.is_empty()).then(|| {
+                    model.meshes.push(data);
+                    model.meshes.len() - 1
+                });
+                mesh_slots.insert(mesh.value(), slot);
+                slot
             }
         };
-        model.placements.push((index, world));
+        if let Some(index) = index {
+            model.placements.push((index, world));
+        }
+    }
+    if any_mesh && model.meshes.is_empty() {
+        return Err(err(
+            "has no triangles: every primitive of its meshes is lines or points, which Prism \
+             does not render (in Blender, give the mesh faces)"
+                .into(),
+        ));
     }
     if needs_default {
         materials.push(Material::default());
@@ -675,7 +714,19 @@ impl<'a> Reader<'a> {
         for (p, primitive) in mesh.primitives.iter().enumerate() {
             let at = format!("meshes[{m}].primitives[{p}]");
             if primitive.mode != Checked::Valid(Mode::Triangles) {
-                self.warn(format!("{at}: not triangles; skipped"));
+                let name = mesh
+                    .name
+                    .as_deref()
+                    .map_or(String::new(), |n| format!(" (mesh `{}`)", short(n)));
+                let what = match primitive.mode {
+                    Checked::Valid(Mode::Points) => "points",
+                    Checked::Valid(Mode::Lines | Mode::LineLoop | Mode::LineStrip) => "lines",
+                    Checked::Valid(_) => "triangle strips or fans",
+                    Checked::Invalid => "of an unknown mode",
+                };
+                self.warn(format!(
+                    "{at}{name}: {what}, not triangles; skipped (Prism renders triangles only)"
+                ));
                 continue;
             }
             let attribute = |s: Semantic| primitive.attributes.get(&Checked::Valid(s)).copied();
@@ -869,11 +920,16 @@ impl<'a> Reader<'a> {
         // light is tinted by it too (KHR_materials_transmission).
         let (kr, kt) = Material::conserving(metallic * base, transmission * base);
         let alpha = roughness * roughness;
+        let albedo = (1.0 - metallic) * (1.0 - transmission);
         Ok(Material {
             texture,
-            ka: 0.1,
-            kd: (1.0 - metallic) * (1.0 - transmission),
-            ks: 1.0 - roughness,
+            // Under a uniform ambient of radiance Ia a Lambertian surface
+            // returns albedo × Ia: its diffuse integrated over the sky.
+            ka: albedo,
+            kd: lambertian(albedo),
+            // Scaled with the diffuse, so the highlight keeps its weight
+            // beside it.
+            ks: lambertian(1.0 - roughness),
             shininess: (2.0 / (alpha * alpha) - 2.0).clamp(1.0, 10_000.0),
             kr,
             kt,
@@ -928,21 +984,30 @@ impl<'a> Reader<'a> {
         }
     }
 
-    /// The first perspective camera, placed by `world`.
+    /// Camera `c` of node `node`, placed by `world`.
     fn camera(
         &mut self,
         node: usize,
         c: usize,
         world: &DMat4,
-        found: &mut Option<ModelCamera>,
-    ) -> Result<(), String> {
+    ) -> Result<Option<ModelCamera>, String> {
         let camera = self.root.cameras.get(c).ok_or_else(|| {
             format!(
                 "nodes[{node}].camera: camera {c} does not exist ({} cameras)",
                 self.root.cameras.len()
             )
         })?;
-        match (&camera.perspective, &camera.orthographic) {
+        let positive = |v: f32, at: &str| -> Result<f64, String> {
+            let v = f64::from(v);
+            if v.is_finite() && v > 0.0 && v <= MAX_VALUE {
+                Ok(v)
+            } else {
+                Err(format!(
+                    "cameras[{c}].{at}: {v}; expected a positive number"
+                ))
+            }
+        };
+        let (projection, aspect_ratio) = match (&camera.perspective, &camera.orthographic) {
             (Some(p), _) => {
                 let yfov = f64::from(p.yfov);
                 if !(yfov > 0.0 && yfov < std::f64::consts::PI) {
@@ -950,28 +1015,42 @@ impl<'a> Reader<'a> {
                         "cameras[{c}].perspective.yfov: {yfov} rad; expected a field of view between 0 and π"
                     ));
                 }
-                if found.is_none() {
-                    let forward = world.transform_vector3(-DVec3::Z).normalize_or_zero();
-                    let up = world.transform_vector3(DVec3::Y).normalize_or_zero();
-                    if forward == DVec3::ZERO || up == DVec3::ZERO {
-                        return Err(format!("nodes[{node}]: the camera's transform is singular"));
-                    }
-                    *found = Some(ModelCamera {
-                        position: world.transform_point3(DVec3::ZERO),
-                        forward,
-                        up,
-                        yfov,
-                    });
-                }
+                let aspect = match p.aspect_ratio {
+                    Some(a) => Some(positive(a, "perspective.aspectRatio")?),
+                    None => None,
+                };
+                (ModelProjection::Perspective { yfov }, aspect)
             }
-            (None, Some(_)) => self.warn("orthographic cameras are ignored".into()),
+            (None, Some(o)) => {
+                let ymag = positive(o.ymag, "orthographic.ymag")?;
+                let xmag = positive(o.xmag, "orthographic.xmag")?;
+                (ModelProjection::Orthographic { ymag }, Some(xmag / ymag))
+            }
             (None, None) => {
                 return Err(format!(
                     "cameras[{c}]: neither perspective nor orthographic"
                 ));
             }
+        };
+        let forward = world.transform_vector3(-DVec3::Z).normalize_or_zero();
+        let up = world.transform_vector3(DVec3::Y).normalize_or_zero();
+        if forward == DVec3::ZERO || up == DVec3::ZERO {
+            return Err(format!("nodes[{node}]: the camera's transform is singular"));
         }
-        Ok(())
+        let node_name = self.root.nodes[node].name.clone();
+        let own = camera.name.clone();
+        Ok(Some(ModelCamera {
+            name: node_name
+                .clone()
+                .or_else(|| own.clone())
+                .unwrap_or_else(|| format!("cameras[{c}]")),
+            alias: own.filter(|_| node_name.is_some()),
+            aspect_ratio,
+            projection,
+            position: world.transform_point3(DVec3::ZERO),
+            forward,
+            up,
+        }))
     }
 
     /// A KHR_lights_punctual light, placed by `world`.
@@ -1011,18 +1090,38 @@ impl<'a> Reader<'a> {
                 LightShape::Point { position }
             }
             Checked::Valid(json::extensions::scene::khr_lights_punctual::Type::Spot) => {
-                self.warn("spot lights become point lights (the cone is ignored)".into());
-                LightShape::Point { position }
+                let Some(spot) = light.spot.as_ref() else {
+                    return Err(format!("{at}: a spot light needs `spot`"));
+                };
+                let (inner, outer) = (
+                    f64::from(spot.inner_cone_angle),
+                    f64::from(spot.outer_cone_angle),
+                );
+                if !(0.0..=std::f64::consts::FRAC_PI_2).contains(&outer)
+                    || !(0.0..=outer).contains(&inner)
+                {
+                    return Err(format!(
+                        "{at}.spot: innerConeAngle {inner} and outerConeAngle {outer} rad; \
+                         expected 0 ≤ inner ≤ outer ≤ π/2"
+                    ));
+                }
+                LightShape::Spot {
+                    position,
+                    direction: world.transform_vector3(-DVec3::Z).normalize_or_zero(),
+                    cos_inner: crate::math::transcendental::sin_cos(inner).1,
+                    cos_outer: crate::math::transcendental::sin_cos(outer).1,
+                }
             }
             Checked::Invalid => return Err(format!("{at}.type: unknown light type")),
         };
-        if matches!(shape, LightShape::Directional { direction } if direction == DVec3::ZERO) {
+        if matches!(shape, LightShape::Directional { direction } | LightShape::Spot { direction, .. } if direction == DVec3::ZERO)
+        {
             return Err(format!("nodes[{node}]: the light's transform is singular"));
         }
         Ok(Light {
             inverse_square: !matches!(shape, LightShape::Directional { .. }),
             shape,
-            radiance: DVec3::from_array(color) * intensity,
+            radiance: DVec3::from_array(color) * photometric_to_radiometric(intensity),
         })
     }
 }
@@ -1030,6 +1129,24 @@ impl<'a> Reader<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn blender_lights_convert_to_what_cycles_shows() {
+        // Blender's exporter writes a 100 W point light as
+        // 100 / (4π) × 683 cd. Over an albedo-0.8 plane 4 m below, Cycles
+        // shows 0.1266: 0.8/π × (100/(4π)) / 4².
+        let candela = 100.0 / (4.0 * std::f64::consts::PI) * 683.0;
+        let il = photometric_to_radiometric(candela);
+        assert!((il - 7.957_747).abs() < 1e-6, "{il}");
+        let radiance = lambertian(0.8) * il / 16.0;
+        assert!((radiance - 0.126_651).abs() < 1e-6, "{radiance}");
+        // A 1 W/m² sun is 683 lux; straight down on the plane: 0.8/π.
+        let sun = lambertian(0.8) * photometric_to_radiometric(683.0);
+        assert!((sun - 0.254_648).abs() < 1e-6, "{sun}");
+        // The old reading (candela as Il, no 1/π) was 683π times brighter.
+        let old = 0.8 * candela / 16.0;
+        assert!((old / radiance - 683.0 * std::f64::consts::PI).abs() < 1e-6);
+    }
 
     fn graph(children: &[&[usize]]) -> NodeGraph {
         NodeGraph {
