@@ -440,3 +440,168 @@ fn a_gltf_file_is_a_scene_reading_below_its_folder_only() {
     );
     assert!(Path::new(d.path()).exists());
 }
+
+/// A 2 × 1 PNG, black then white, as a data URI.
+fn black_white_png() -> String {
+    let img = image::RgbImage::from_raw(2, 1, vec![0, 0, 0, 255, 255, 255]).unwrap();
+    let mut png = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    format!("data:image/png;base64,{}", base64::encode(&png))
+}
+
+/// The probe with `material` on the quad, which gets texture coordinates
+/// u = (x + 10)/20, v = (z + 10)/20 (glTF's, v down); texture 0 is the
+/// black-and-white image through sampler 0 = `sampler`. No lights.
+fn textured(material: Value, sampler: Value) -> String {
+    let (cam, camera) = top_camera();
+    let text = gltf(json!([cam]), json!([]), json!([camera]), quad());
+    let mut root: Value = serde_json::from_str(&text).unwrap();
+    let mut uvs = Vec::new();
+    for uv in [[0f32, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, 0.0]] {
+        for c in uv {
+            uvs.extend(c.to_le_bytes());
+        }
+    }
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::encode(&uvs)
+    );
+    root["buffers"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"uri": uri, "byteLength": 32}));
+    root["bufferViews"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"buffer": 1, "byteLength": 32}));
+    root["accessors"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"bufferView": 3, "componentType": 5126, "count": 4, "type": "VEC2"}));
+    root["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(3);
+    // Not metallic (glTF's default is 1: a mirror of the background).
+    let mut material = material;
+    material["pbrMetallicRoughness"]["metallicFactor"] = json!(0);
+    root["materials"] = json!([material]);
+    root["images"] = json!([{"uri": black_white_png()}]);
+    root["samplers"] = json!([sampler]);
+    root["textures"] = json!([{"source": 0, "sampler": 0}]);
+    root.to_string()
+}
+
+/// The red channel of pixels 0..9 along the middle row.
+fn row(text: &str) -> Vec<f64> {
+    let (_d, s) = load("t.gltf", text, &LoadOptions::default());
+    let s = s.unwrap();
+    (0..9).map(|x| pixel(&s, x, 4).x).collect()
+}
+
+#[test]
+fn emission_is_factor_times_texture_times_strength() {
+    let text = textured(
+        json!({"emissiveFactor": [1, 0.5, 0],
+               "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 2}}}),
+        json!({}),
+    );
+    let (_d, s) = load("e.gltf", &text, &LoadOptions::default());
+    // No lights, no ambient: only the emission shows.
+    assert_eq!(pixel(&s.unwrap(), 4, 4), glam::DVec3::new(2.0, 1.0, 0.0));
+    // Through the texture: black on the left half, 2 on the right.
+    let r = row(&textured(
+        json!({"emissiveFactor": [1, 1, 1], "emissiveTexture": {"index": 0},
+               "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 2}}}),
+        json!({"magFilter": 9728}),
+    ));
+    assert_eq!(r[3], 0.0);
+    assert_eq!(r[5], 2.0);
+}
+
+#[test]
+fn samplers_filter_and_wrap_and_texture_transforms_tile() {
+    let emissive = |transform: Option<Value>| {
+        let mut info = json!({"index": 0});
+        if let Some(t) = transform {
+            info["extensions"] = json!({"KHR_texture_transform": t});
+        }
+        json!({"emissiveFactor": [1, 1, 1], "emissiveTexture": info})
+    };
+    // Pixel 4 looks at u = 0.5, the edge between the texels.
+    let linear = row(&textured(emissive(None), json!({})));
+    assert!((linear[4] - 0.5).abs() < 1e-9, "{linear:?}");
+    let nearest = row(&textured(
+        emissive(None),
+        json!({"magFilter": 9728, "minFilter": 9728}),
+    ));
+    assert_eq!((nearest[3], nearest[4], nearest[5]), (0.0, 1.0, 1.0));
+    // Tiled twice (Blender's Mapping node scale 2): pixel 3's u = 0.456
+    // reads 0.911 (white), pixel 5's 0.544 reads 1.089, repeated 0.089
+    // (black), or clamped to the white edge.
+    let scale = Some(json!({"scale": [2, 2]}));
+    let tiled = row(&textured(
+        emissive(scale.clone()),
+        json!({"magFilter": 9728}),
+    ));
+    assert_eq!((tiled[3], tiled[5]), (1.0, 0.0));
+    let clamped = row(&textured(
+        emissive(scale.clone()),
+        json!({"magFilter": 9728, "wrapS": 33071}),
+    ));
+    assert_eq!((clamped[3], clamped[5]), (1.0, 1.0));
+    // Mirrored: 1.089 reads 0.911, white.
+    let mirrored = row(&textured(
+        emissive(scale),
+        json!({"magFilter": 9728, "wrapS": 33648}),
+    ));
+    assert_eq!(mirrored[5], 1.0);
+    // An offset of ½ swaps the halves.
+    let offset = row(&textured(
+        emissive(Some(json!({"offset": [0.5, 0]}))),
+        json!({"magFilter": 9728}),
+    ));
+    assert_eq!((offset[3], offset[5]), (1.0, 0.0));
+}
+
+#[test]
+fn ignored_features_are_named_in_one_warning_and_required_ones_explained() {
+    let mut root: Value = serde_json::from_str(&textured(
+        json!({"normalTexture": {"index": 0}, "alphaMode": "BLEND",
+               "pbrMetallicRoughness": {"baseColorTexture": {"index": 0, "texCoord": 1}}}),
+        json!({}),
+    ))
+    .unwrap();
+    root["extensionsUsed"] = json!([
+        "KHR_lights_punctual",
+        "KHR_materials_clearcoat",
+        "KHR_texture_transform"
+    ]);
+    root["extensionsRequired"] = json!(["KHR_texture_transform"]);
+    let (_d, s) = load("w.gltf", &root.to_string(), &LoadOptions::default());
+    let s = s.unwrap();
+    let ignored: Vec<&String> = s
+        .warnings
+        .iter()
+        .filter(|w| w.contains("Prism ignores"))
+        .collect();
+    assert_eq!(ignored.len(), 1, "{:?}", s.warnings);
+    for feature in [
+        "normal maps (materials[0])",
+        "alpha (alphaMode BLEND or MASK) (materials[0])",
+        "texture coordinate sets other than TEXCOORD_0",
+        "the extension KHR_materials_clearcoat",
+    ] {
+        assert!(ignored[0].contains(feature), "{feature}: {}", ignored[0]);
+    }
+    assert!(
+        !ignored[0].contains("KHR_texture_transform"),
+        "{}",
+        ignored[0]
+    );
+    root["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
+    let (_d, s) = load("d.gltf", &root.to_string(), &LoadOptions::default());
+    let e = s.unwrap_err();
+    assert!(
+        e.contains("KHR_draco_mesh_compression") && e.contains("untick Data > Compression"),
+        "{e}"
+    );
+}

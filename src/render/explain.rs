@@ -35,6 +35,8 @@ pub struct RayNode {
     pub hit: Option<HitInfo>,
     /// ka·Od·Ia.
     pub ambient: [f64; 3],
+    /// The surface's own emission.
+    pub emission: [f64; 3],
     /// Each light's terms.
     pub lights: Vec<LightTerms>,
     /// Weight of the reflected ray (after Fresnel and total internal
@@ -256,6 +258,12 @@ impl Recorder for TreeRecorder<'_> {
         }
     }
 
+    fn emission(&mut self, term: DVec3) {
+        if let Some((node, _)) = self.stack.last_mut() {
+            node.emission = term.to_array();
+        }
+    }
+
     fn feeler(&mut self, light: usize, direction: DVec3, falloff: f64, visibility: DVec3) {
         let scene = self.scene;
         let Some((_, s)) = self.stack.last_mut() else {
@@ -353,7 +361,7 @@ impl Recorder for TreeRecorder<'_> {
 }
 
 impl RayNode {
-    /// The sum of the node's terms: ambient + lights + kr·I_r + kt·I_t (or
+    /// The sum of the node's terms: ambient + emission + lights + kr·I_r + kt·I_t (or
     /// the background on a miss). Equals `radiance` up to the rounding of
     /// the order of additions.
     pub fn sum_of_terms(&self) -> DVec3 {
@@ -362,6 +370,7 @@ impl RayNode {
         }
         let v = DVec3::from_array;
         v(self.ambient)
+            + v(self.emission)
             + self.lights.iter().map(|l| v(l.contribution)).sum::<DVec3>()
             + v(self.reflected_term)
             + v(self.refracted_term)

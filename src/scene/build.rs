@@ -663,6 +663,11 @@ impl Check<'_, '_> {
                 Some(HighlightDesc::Blinn) => Highlight::Blinn,
                 _ => Highlight::Phong,
             },
+            emission: Texture::Solid(
+                d.emission
+                    .as_ref()
+                    .map_or(DVec3::ZERO, |c| self.color(c, "emission")),
+            ),
         }
     }
 

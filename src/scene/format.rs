@@ -187,6 +187,8 @@ pub struct MaterialDesc {
     pub fresnel: Option<FresnelDesc>,
     /// Highlight model.
     pub highlight: Option<HighlightDesc>,
+    /// Light the surface gives off itself.
+    pub emission: Option<Triple>,
 }
 
 /// Light kinds.

@@ -149,6 +149,9 @@ fn node(n: &RayNode, indent: usize, out: &mut String) {
                 ),
             );
             line(out, format!("  ambient ka*Od*Ia = {}", rgb(n.ambient)));
+            if n.emission != [0.0; 3] {
+                line(out, format!("  emission = {}", rgb(n.emission)));
+            }
             for l in &n.lights {
                 line(
                     out,

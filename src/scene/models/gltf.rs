@@ -32,6 +32,7 @@ use crate::geometry::MeshData;
 use crate::lights::{Light, LightShape};
 use crate::limits::{MAX_MODEL_PLACEMENTS, MAX_VALUE};
 use crate::scene::resources::{Resources, TextureKey};
+use crate::shading::texture::{Sampling, Wrap, texture_transform};
 use crate::shading::{Fresnel, Highlight, Material, Texture};
 
 /// Luminous efficacy the glTF specification converts with (lm/W), as
@@ -57,7 +58,27 @@ const SUPPORTED: &[&str] = &[
     "KHR_lights_punctual",
     "KHR_materials_transmission",
     "KHR_materials_ior",
+    "KHR_materials_emissive_strength",
+    "KHR_texture_transform",
 ];
+
+/// What to change in Blender's glTF export for a required extension Prism
+/// cannot read.
+fn required_extension_advice(ext: &str) -> &'static str {
+    match ext {
+        "KHR_draco_mesh_compression" | "EXT_meshopt_compression" => {
+            "compressed meshes; in Blender's glTF export untick Data > Compression"
+        }
+        "EXT_texture_webp" | "KHR_texture_basisu" => {
+            "images Prism cannot decode; in Blender's glTF export set Material > Images to \
+             Automatic or JPEG (not WebP)"
+        }
+        "KHR_mesh_quantization" => {
+            "quantized vertex data; export without quantization (Blender writes float vertices)"
+        }
+        _ => "export without it (or with the feature that needs it turned off)",
+    }
+}
 
 pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
     let err = |message: String| ModelError::new(path, None, message);
@@ -78,7 +99,8 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
         .find(|e| !SUPPORTED.contains(&e.as_str()))
     {
         return Err(err(format!(
-            "requires the extension `{ext}`, which Prism does not support"
+            "requires the extension `{ext}`, which Prism does not support: {}",
+            required_extension_advice(ext)
         )));
     }
     let dir = path.parent().unwrap_or(Path::new("."));
@@ -88,6 +110,7 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
         buffers: &buffers,
         file: path,
         warnings: Vec::new(),
+        ignored: Default::default(),
     };
     let mut materials = Vec::with_capacity(root.materials.len());
     for i in 0..root.materials.len() {
@@ -194,6 +217,42 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
         materials.push(Material::default());
     }
     model.materials = materials;
+    for ext in &root.extensions_used {
+        if !SUPPORTED.contains(&ext.as_str()) {
+            reader.ignore(&format!("the extension {}", short(ext)), "extensionsUsed");
+        }
+    }
+    for (present, feature) in [
+        (!root.animations.is_empty(), "animations"),
+        (!root.skins.is_empty(), "skins"),
+    ] {
+        if present {
+            reader.ignore(feature, "");
+        }
+    }
+    if !reader.ignored.is_empty() {
+        let list: Vec<String> = reader
+            .ignored
+            .iter()
+            .map(|(feature, places)| {
+                let places: Vec<&str> = places
+                    .iter()
+                    .map(String::as_str)
+                    .filter(|p| !p.is_empty())
+                    .collect();
+                match places.as_slice() {
+                    [] | ["extensionsUsed"] => feature.clone(),
+                    [a] => format!("{feature} ({a})"),
+                    [a, b] => format!("{feature} ({a}, {b})"),
+                    [a, b, rest @ ..] => format!("{feature} ({a}, {b} and {} more)", rest.len()),
+                }
+            })
+            .collect();
+        reader.warn(format!(
+            "Prism ignores what it cannot render of this file: {}",
+            list.join("; ")
+        ));
+    }
     model.warnings = reader.warnings;
     Ok(model)
 }
@@ -466,6 +525,8 @@ struct Reader<'a> {
     buffers: &'a [Vec<u8>],
     file: &'a Path,
     warnings: Vec<String>,
+    /// Features used but not rendered → where (JSON paths): one warning.
+    ignored: std::collections::BTreeMap<String, Vec<String>>,
 }
 
 /// An accessor's elements, every byte of them known to lie in its buffer.
@@ -730,6 +791,12 @@ impl<'a> Reader<'a> {
                 continue;
             }
             let attribute = |s: Semantic| primitive.attributes.get(&Checked::Valid(s)).copied();
+            if attribute(Semantic::Colors(0)).is_some() {
+                self.ignore("COLOR_0 vertex colours", &at);
+            }
+            if !primitive.targets.as_ref().is_none_or(Vec::is_empty) {
+                self.ignore("morph targets", &at);
+            }
             let Some(position) = attribute(Semantic::Positions) else {
                 return Err(format!("{at}.attributes.POSITION: missing"));
             };
@@ -880,23 +947,55 @@ impl<'a> Reader<'a> {
             .max(0.02);
         let texture = match &pbr.base_color_texture {
             None => Texture::Solid(base),
-            Some(info) => Texture::Image {
-                image: self.image(
-                    info.index.value(),
-                    &format!("{at}.pbrMetallicRoughness.baseColorTexture"),
-                    res,
-                )?,
-                tint: base,
-            },
+            Some(info) => self.texture(
+                info,
+                base,
+                &format!("{at}.pbrMetallicRoughness.baseColorTexture"),
+                res,
+            )?,
         };
-        if m.normal_texture.is_some()
-            || m.occlusion_texture.is_some()
-            || m.emissive_texture.is_some()
-            || pbr.metallic_roughness_texture.is_some()
-        {
-            self.warn("only base colour textures are used; normal, occlusion, emissive and metallic-roughness maps are ignored".into());
+        for (present, feature) in [
+            (m.normal_texture.is_some(), "normal maps"),
+            (m.occlusion_texture.is_some(), "occlusion maps"),
+            (
+                pbr.metallic_roughness_texture.is_some(),
+                "metallic-roughness maps",
+            ),
+            (
+                m.alpha_mode != Checked::Valid(json::material::AlphaMode::Opaque),
+                "alpha (alphaMode BLEND or MASK)",
+            ),
+        ] {
+            if present {
+                self.ignore(feature, &at);
+            }
         }
         let ext = m.extensions.as_ref();
+        let strength = match ext.and_then(|e| e.emissive_strength.as_ref()) {
+            Some(s) => {
+                let v = f64::from(s.emissive_strength.0);
+                if !v.is_finite() || !(0.0..=MAX_VALUE).contains(&v) {
+                    return Err(format!(
+                        "{at}.extensions.KHR_materials_emissive_strength.emissiveStrength: {v} \
+                         must be a finite number between 0 and {MAX_VALUE:e}"
+                    ));
+                }
+                v
+            }
+            None => 1.0,
+        };
+        let mut emissive = [0.0; 3];
+        for (c, value) in emissive.iter_mut().enumerate() {
+            *value =
+                self.unit_factor(m.emissive_factor.0[c], &format!("{at}.emissiveFactor[{c}]"))?;
+        }
+        let emissive = DVec3::from_array(emissive) * strength;
+        let emission = match &m.emissive_texture {
+            Some(info) if emissive != DVec3::ZERO => {
+                self.texture(info, emissive, &format!("{at}.emissiveTexture"), res)?
+            }
+            _ => Texture::Solid(emissive),
+        };
         let transmission = match ext.and_then(|e| e.transmission.as_ref()) {
             Some(t) => self.unit_factor(
                 t.transmission_factor.0,
@@ -940,6 +1039,82 @@ impl<'a> Reader<'a> {
                 Fresnel::Off
             },
             highlight: Highlight::Blinn,
+            emission,
+        })
+    }
+
+    /// Notes a feature the file uses that Prism does not render, and where.
+    fn ignore(&mut self, feature: &str, at: &str) {
+        let places = self.ignored.entry(feature.to_string()).or_default();
+        if !places.iter().any(|p| p == at) {
+            places.push(at.to_string());
+        }
+    }
+
+    /// The texture `info` refers to, times `tint`, read through its
+    /// sampler and KHR_texture_transform.
+    fn texture(
+        &mut self,
+        info: &json::texture::Info,
+        tint: DVec3,
+        at: &str,
+        res: &mut Resources,
+    ) -> Result<Texture, String> {
+        let image = self.image(info.index.value(), at, res)?;
+        let mut sampling = Sampling::default();
+        let mut tex_coord = info.tex_coord;
+        if let Some(t) = info
+            .extensions
+            .as_ref()
+            .and_then(|e| e.texture_transform.as_ref())
+        {
+            let finite = |v: &[f32]| v.iter().all(|x| x.is_finite() && x.abs() <= 1e15);
+            if !finite(&t.offset.0) || !finite(&t.scale.0) || !finite(&[t.rotation.0]) {
+                return Err(format!(
+                    "{at}.extensions.KHR_texture_transform: offset, rotation and scale must be finite numbers"
+                ));
+            }
+            sampling.transform = texture_transform(
+                DVec2::from_array(t.offset.0.map(f64::from)),
+                f64::from(t.rotation.0),
+                DVec2::from_array(t.scale.0.map(f64::from)),
+            );
+            tex_coord = t.tex_coord.unwrap_or(tex_coord);
+        }
+        if tex_coord != 0 {
+            self.ignore("texture coordinate sets other than TEXCOORD_0", at);
+        }
+        let texture = lookup(
+            &self.root.textures,
+            info.index.value(),
+            &format!("{at}.index"),
+            "texture",
+        )?;
+        if let Some(s) = texture.sampler {
+            let t = info.index.value();
+            let sampler = lookup(
+                &self.root.samplers,
+                s.value(),
+                &format!("textures[{t}].sampler"),
+                "sampler",
+            )?;
+            use json::texture::{MagFilter, WrappingMode};
+            sampling.nearest = sampler.mag_filter == Some(Checked::Valid(MagFilter::Nearest));
+            let wrap = |w: &Checked<WrappingMode>| match w {
+                Checked::Valid(WrappingMode::ClampToEdge) => Wrap::Clamp,
+                Checked::Valid(WrappingMode::MirroredRepeat) => Wrap::Mirror,
+                _ => Wrap::Repeat,
+            };
+            sampling.wrap = [wrap(&sampler.wrap_s), wrap(&sampler.wrap_t)];
+        }
+        Ok(if sampling == Sampling::default() {
+            Texture::Image { image, tint }
+        } else {
+            Texture::Sampled {
+                image,
+                tint,
+                sampling,
+            }
         })
     }
 
