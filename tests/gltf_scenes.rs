@@ -605,3 +605,43 @@ fn ignored_features_are_named_in_one_warning_and_required_ones_explained() {
         "{e}"
     );
 }
+
+#[test]
+fn vertex_colours_multiply_the_base_colour() {
+    let (cam, camera) = top_camera();
+    let text = gltf(
+        json!([cam, light_node()]),
+        json!([{"type": "directional", "intensity": 683.0}]),
+        json!([camera]),
+        quad(),
+    );
+    let mut root: Value = serde_json::from_str(&text).unwrap();
+    // RGBA as Blender writes it, normalized unsigned shorts: (1, ½, ¼, 1).
+    let mut colors = Vec::new();
+    for _ in 0..4 {
+        for c in [65535u16, 32768, 16384, 65535] {
+            colors.extend(c.to_le_bytes());
+        }
+    }
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::encode(&colors)
+    );
+    root["buffers"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"uri": uri, "byteLength": 32}));
+    root["bufferViews"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"buffer": 1, "byteLength": 32}));
+    root["accessors"].as_array_mut().unwrap().push(
+        json!({"bufferView": 3, "componentType": 5123, "normalized": true, "count": 4, "type": "VEC4"}),
+    );
+    root["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = json!(3);
+    let (_d, s) = load("v.gltf", &root.to_string(), &LoadOptions::default());
+    let got = pixel(&s.unwrap(), 4, 4);
+    let want = 0.8 / PI * glam::DVec3::new(1.0, 32768.0 / 65535.0, 16384.0 / 65535.0);
+    // baseColorFactor 0.8 is an f32.
+    assert!((got - want).length() < 1e-7, "{got} vs {want}");
+}

@@ -287,7 +287,7 @@ impl<'a> Whitted<'a> {
             },
             view: -ray.direction,
             material,
-            od: material.texture.color(hit.point, hit.normal, hit.uv),
+            od: material.texture.color(hit.point, hit.normal, hit.uv) * hit.color,
         };
 
         rec.hit(&hit, entering, point.n, point.od);

@@ -622,6 +622,20 @@ const TEXCOORD: Expect = Expect {
         (ComponentType::U16, true),
     ],
 };
+/// COLOR_0: float or normalized unsigned byte/short, RGB or RGBA.
+const COLOR_COMPONENTS: &[(ComponentType, bool)] = &[
+    (ComponentType::F32, false),
+    (ComponentType::U8, true),
+    (ComponentType::U16, true),
+];
+const COLOR3: Expect = Expect {
+    kind: Type::Vec3,
+    components: COLOR_COMPONENTS,
+};
+const COLOR4: Expect = Expect {
+    kind: Type::Vec4,
+    components: COLOR_COMPONENTS,
+};
 const INDICES: Expect = Expect {
     kind: Type::Scalar,
     components: &[
@@ -791,9 +805,6 @@ impl<'a> Reader<'a> {
                 continue;
             }
             let attribute = |s: Semantic| primitive.attributes.get(&Checked::Valid(s)).copied();
-            if attribute(Semantic::Colors(0)).is_some() {
-                self.ignore("COLOR_0 vertex colours", &at);
-            }
             if !primitive.targets.as_ref().is_none_or(Vec::is_empty) {
                 self.ignore("morph targets", &at);
             }
@@ -848,6 +859,26 @@ impl<'a> Reader<'a> {
                         .extend((0..count).map(|i| DVec2::new(uvs.get(i, 0), 1.0 - uvs.get(i, 1))));
                 }
                 _ => data.uvs.clear(),
+            }
+            match attribute(Semantic::Colors(0)) {
+                Some(c) if data.colors.len() == base => {
+                    let at = format!("{at}.attributes.COLOR_0");
+                    let four = self.root.accessors.get(c.value()).map(|a| a.type_)
+                        == Some(Checked::Valid(Type::Vec4));
+                    let colors = self.elements(c, &at, if four { &COLOR4 } else { &COLOR3 })?;
+                    if colors.count != count {
+                        return Err(format!(
+                            "{at}: {} colours for {count} positions",
+                            colors.count
+                        ));
+                    }
+                    // Linear RGB; alpha (VEC4) is not used.
+                    data.colors.extend((0..count).map(|i| {
+                        DVec3::new(colors.get(i, 0), colors.get(i, 1), colors.get(i, 2))
+                            .clamp(DVec3::ZERO, DVec3::splat(MAX_VALUE))
+                    }));
+                }
+                _ => data.colors.clear(),
             }
             let slot = match primitive.material {
                 Some(i) if i.value() < self.root.materials.len() => i.value() as u32,
@@ -904,6 +935,9 @@ impl<'a> Reader<'a> {
         }
         if data.normals.len() != data.positions.len() {
             data.normals.clear();
+        }
+        if data.colors.len() != data.positions.len() {
+            data.colors.clear();
         }
         if data.uvs.len() != data.positions.len() {
             data.uvs.clear();
