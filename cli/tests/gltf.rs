@@ -135,3 +135,35 @@ fn an_unknown_camera_name_is_refused_naming_the_cameras() {
     );
     assert!(o.status.success(), "{}", stderr(&o));
 }
+
+#[test]
+fn explain_shows_a_spot_lights_cone_and_a_camera_less_file_is_refused() {
+    let dir = pyramids();
+    let path = dir.path().join("pyramids.gltf");
+    let text = std::fs::read_to_string(&path).unwrap();
+    // The lamp becomes a spot pointing down −z, its cone 86° wide.
+    let spot = text.replacen(
+        "\"type\": \"point\",",
+        "\"type\": \"spot\", \"spot\": {\"outerConeAngle\": 1.5},",
+        1,
+    );
+    std::fs::write(&path, &spot).unwrap();
+    // A pixel on the left pyramid.
+    let o = prism(
+        &["explain", "pyramids.gltf", "--pixel", "220,180"],
+        dir.path(),
+    );
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.contains("(spot: its cone sends 0."), "{out}");
+    // Without its camera node the file cannot be rendered alone.
+    let no_camera = spot.replacen("\"camera\": 0,", "", 1);
+    std::fs::write(&path, no_camera).unwrap();
+    let o = prism(&["check", "pyramids.gltf"], dir.path());
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("pyramids.gltf:1:1: error: the file has no camera"),
+        "{err}"
+    );
+}

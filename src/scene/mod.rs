@@ -263,10 +263,15 @@ impl Scene {
                         .map(|d| Diagnostic {
                             line: 1,
                             column: 1,
-                            message: d
-                                .message
-                                .strip_prefix("objects[0]: ")
-                                .map_or(d.message.clone(), str::to_string),
+                            message: if d.message.starts_with("missing [camera]") {
+                                "the file has no camera: add one in Blender (or place the file \
+                                 in a scene file, type = \"mesh\", with a [camera])"
+                                    .to_string()
+                            } else {
+                                d.message
+                                    .strip_prefix("objects[0]: ")
+                                    .map_or(d.message.clone(), str::to_string)
+                            },
                         })
                         .collect(),
                 },
