@@ -24,6 +24,35 @@ pub struct RenderSettings {
     pub frame: u32,
     /// Worker threads; `None` uses every core.
     pub threads: Option<usize>,
+    /// Exposure in stops (EV): 8-bit images store radiance × 2^EV. The
+    /// film, EXR and HDR files keep the linear radiance.
+    pub exposure: f64,
+    /// Width over height that a model's camera asks for (glTF
+    /// `aspectRatio`) when the scene file does not set both sides: a
+    /// command-line override of one side then derives the other.
+    pub aspect: Option<f64>,
+}
+
+/// The image size for a camera made for images `aspect` wide per unit of
+/// height, given the sides the user set: both kept as they are; one set,
+/// the other derived (rounded, at least 1); none, the default width and
+/// the height it implies.
+pub fn image_shape(aspect: f64, width: Option<u32>, height: Option<u32>) -> (u32, u32) {
+    let side = |v: f64| (v.round().clamp(1.0, f64::from(limits::MAX_IMAGE_SIDE))) as u32;
+    match (width, height) {
+        (Some(w), Some(h)) => (w, h),
+        (Some(w), None) => (w, side(f64::from(w) / aspect)),
+        (None, Some(h)) => (side(f64::from(h) * aspect), h),
+        (None, None) => {
+            let w = RenderSettings::default().width;
+            (w, side(f64::from(w) / aspect))
+        }
+    }
+}
+
+/// 2^`ev`: the factor an exposure of `ev` stops puts on radiance.
+pub fn exposure_scale(ev: f64) -> f64 {
+    crate::math::transcendental::pow(2.0, ev)
 }
 
 impl RenderSettings {
@@ -81,6 +110,33 @@ impl Default for RenderSettings {
             seed: 0,
             frame: 0,
             threads: None,
+            exposure: 0.0,
+            aspect: None,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_camera_aspect_shapes_the_sides_not_given() {
+        // Blender's 1920×1080: 16:9.
+        let a = 16.0 / 9.0;
+        assert_eq!(image_shape(a, None, None), (640, 360));
+        assert_eq!(image_shape(a, Some(1280), None), (1280, 720));
+        assert_eq!(image_shape(a, None, Some(1080)), (1920, 1080));
+        assert_eq!(image_shape(a, Some(100), Some(100)), (100, 100));
+        // A needle-thin aspect still gives a side of at least one pixel.
+        assert_eq!(image_shape(1e9, Some(10), None), (10, 1));
+    }
+
+    #[test]
+    fn exposure_doubles_per_stop() {
+        assert_eq!(exposure_scale(0.0), 1.0);
+        assert_eq!(exposure_scale(1.0), 2.0);
+        assert_eq!(exposure_scale(-2.0), 0.25);
+        assert!((exposure_scale(0.5) - std::f64::consts::SQRT_2).abs() < 1e-15);
     }
 }

@@ -25,6 +25,10 @@ pub struct LoadArgs {
     #[arg(long, value_name = "MIB", default_value_t = limits::DEFAULT_TEXTURE_MIB,
           value_parser = clap::value_parser!(u64).range(1..=1 << 30))]
     texture_memory: u64,
+    /// Look through the model camera of this name (a glTF camera's node
+    /// or own name) instead of the scene's camera.
+    #[arg(long, value_name = "NAME")]
+    camera: Option<String>,
 }
 
 impl Default for LoadArgs {
@@ -34,6 +38,7 @@ impl Default for LoadArgs {
         LoadArgs {
             allow_read: Vec::new(),
             texture_memory: limits::DEFAULT_TEXTURE_MIB,
+            camera: None,
         }
     }
 }
@@ -41,7 +46,10 @@ impl Default for LoadArgs {
 impl LoadArgs {
     /// The load options, or a message naming a folder that does not exist.
     pub fn options(&self) -> Result<LoadOptions, String> {
-        LoadOptions::with_allow_read(&self.allow_read, self.texture_memory)
+        Ok(LoadOptions {
+            camera: self.camera.clone(),
+            ..LoadOptions::with_allow_read(&self.allow_read, self.texture_memory)?
+        })
     }
 }
 

@@ -96,6 +96,7 @@ impl Aggregate {
                 front_face: h.front_face,
                 shading_normal: h.shading_normal,
                 uv: p.shape.uv(point, &h),
+                color: h.color,
                 primitive,
                 material: h.material.unwrap_or(p.material),
             }

@@ -18,6 +18,8 @@ pub struct ShapeHit {
     /// Texture coordinates, where the shape computes them during the test
     /// (meshes); analytic shapes give theirs after the closest hit is known.
     pub uv: DVec2,
+    /// Vertex colour at the hit (white where the shape has none).
+    pub color: DVec3,
     /// A material chosen by the shape itself (a mesh's per-triangle
     /// material), overriding the primitive's.
     pub material: Option<u32>,
@@ -33,6 +35,7 @@ impl ShapeHit {
             front_face,
             shading_normal: normal,
             uv: DVec2::ZERO,
+            color: DVec3::ONE,
             material: None,
         }
     }
@@ -53,6 +56,9 @@ pub struct Hit {
     pub shading_normal: DVec3,
     /// Texture coordinates.
     pub uv: DVec2,
+    /// Vertex colour (glTF COLOR_0), multiplied into the surface colour;
+    /// white without one.
+    pub color: DVec3,
     /// Index of the primitive hit.
     pub primitive: u32,
     /// Index of the material at the hit.

@@ -53,6 +53,7 @@ impl MeshInstance {
             front_face: ray.direction.dot(normal) < 0.0,
             shading_normal,
             uv: h.uv,
+            color: h.color,
             material,
         })
     }

@@ -22,6 +22,9 @@ pub struct MeshData {
     pub triangles: Vec<[u32; 3]>,
     /// Per-triangle material slot (empty: all slot 0).
     pub materials: Vec<u32>,
+    /// Per-vertex colours (glTF COLOR_0), multiplied into the surface
+    /// colour (empty: none).
+    pub colors: Vec<DVec3>,
 }
 
 /// Why mesh data is unusable.
@@ -69,6 +72,7 @@ pub struct Mesh {
     positions: Vec<DVec3>,
     normals: Vec<DVec3>,
     uvs: Vec<DVec2>,
+    colors: Vec<DVec3>,
     /// Triangles in BVH leaf order.
     triangles: Vec<[u32; 3]>,
     /// Material slot per triangle (BVH order; empty: slot 0).
@@ -87,6 +91,8 @@ pub struct MeshHit {
     pub shading_normal: DVec3,
     /// Interpolated texture coordinates (zero without any).
     pub uv: DVec2,
+    /// Interpolated vertex colour (white without any).
+    pub color: DVec3,
     /// Material slot of the triangle.
     pub material: u32,
 }
@@ -100,6 +106,7 @@ impl Mesh {
             uvs,
             triangles,
             materials,
+            colors,
         } = data;
         if triangles.is_empty() {
             return Err(MeshError::Empty);
@@ -107,7 +114,11 @@ impl Mesh {
         if positions.len() > u32::MAX as usize || triangles.len() > u32::MAX as usize {
             return Err(MeshError::TooLarge);
         }
-        for (what, values) in [("vertex", &positions), ("normal", &normals)] {
+        for (what, values) in [
+            ("vertex", &positions),
+            ("normal", &normals),
+            ("vertex colour", &colors),
+        ] {
             if let Some(index) = values.iter().position(|v| !v.is_finite()) {
                 return Err(MeshError::NotFinite { what, index });
             }
@@ -121,6 +132,7 @@ impl Mesh {
         for (what, got) in [
             ("normals", normals.len()),
             ("texture coordinates", uvs.len()),
+            ("vertex colours", colors.len()),
         ] {
             if got != 0 && got != positions.len() {
                 return Err(MeshError::CountMismatch {
@@ -158,6 +170,7 @@ impl Mesh {
             positions,
             normals,
             uvs,
+            colors,
             triangles: ordered,
             materials,
             bvh,
@@ -184,6 +197,7 @@ impl Mesh {
         self.positions.len() * 24
             + self.normals.len() * 24
             + self.uvs.len() * 16
+            + self.colors.len() * 24
             + self.triangles.len() * 12
             + self.materials.len() * 4
             + self.bvh.memory_bytes()
@@ -248,11 +262,17 @@ impl Mesh {
         } else {
             bary.x * self.uvs[ia] + bary.y * self.uvs[ib] + bary.z * self.uvs[ic]
         };
+        let color = if self.colors.is_empty() {
+            DVec3::ONE
+        } else {
+            interpolate3(&self.colors)
+        };
         MeshHit {
             t,
             normal,
             shading_normal,
             uv,
+            color,
             material: self.materials.get(triangle).copied().unwrap_or(0),
         }
     }
@@ -317,12 +337,19 @@ mod tests {
             uvs: vec![DVec2::ZERO, DVec2::X, DVec2::Y],
             triangles: vec![[0, 1, 2]],
             materials: vec![3],
+            colors: vec![DVec3::X, DVec3::Y, DVec3::Z],
         };
         let m = Mesh::new(data).unwrap();
         let h = m
             .intersect(DVec3::new(0.25, 0.5, 1.0), -DVec3::Z, 0.0, f64::INFINITY)
             .unwrap();
         assert!((h.uv - DVec2::new(0.25, 0.5)).length() < 1e-12);
+        // Barycentric (0.25, 0.25, 0.5) of red, green, blue.
+        assert!(
+            (h.color - DVec3::new(0.25, 0.25, 0.5)).length() < 1e-12,
+            "{}",
+            h.color
+        );
         let expected = (0.5 * DVec3::Z + 0.5 * DVec3::new(0.0, 1.0, 1.0)).normalize();
         assert!((h.shading_normal - expected).length() < 1e-12);
         assert_eq!(h.normal, DVec3::Z);

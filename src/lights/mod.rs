@@ -21,6 +21,19 @@ pub enum LightShape {
         /// Unit direction the light travels in.
         direction: DVec3,
     },
+    /// A point that lights a cone (glTF's and POV-Ray's spot light): full
+    /// intensity within the inner cone, fading smoothly to nothing at the
+    /// outer one.
+    Spot {
+        /// Position.
+        position: DVec3,
+        /// Unit direction of the cone's axis (the way the light travels).
+        direction: DVec3,
+        /// Cosine of the inner cone's half-angle.
+        cos_inner: f64,
+        /// Cosine of the outer cone's half-angle (≤ `cos_inner`).
+        cos_outer: f64,
+    },
     /// A glowing sphere, sampled with `samples` feelers per shading point.
     Sphere {
         /// Centre.
@@ -90,6 +103,16 @@ impl Light {
         match self.shape {
             LightShape::Point { position } => {
                 LightSampler::Fixed(self.towards_point(point, position))
+            }
+            LightShape::Spot {
+                position,
+                direction,
+                cos_inner,
+                cos_outer,
+            } => {
+                let mut s = self.towards_point(point, position);
+                s.falloff *= spot_attenuation(direction.dot(-s.direction), cos_inner, cos_outer);
+                LightSampler::Fixed(s)
             }
             LightShape::Directional { direction } => LightSampler::Fixed(LightSample {
                 direction: -direction,
@@ -191,6 +214,17 @@ impl LightSampler {
     }
 }
 
+/// The share of a spot light's intensity that leaves it at angle θ from
+/// its axis (`cos_angle` = cos θ): the KHR_lights_punctual falloff, 1
+/// within the inner cone, 0 beyond the outer, and between them t² with t
+/// running linearly in cos θ from 0 at the outer cone to 1 at the inner.
+pub fn spot_attenuation(cos_angle: f64, cos_inner: f64, cos_outer: f64) -> f64 {
+    // The specification's guard: equal cones give a hard edge, not 0/0.
+    let scale = 1.0 / (cos_inner - cos_outer).max(1e-3);
+    let t = ((cos_angle - cos_outer) * scale).clamp(0.0, 1.0);
+    t * t
+}
+
 /// How far a feeler from the shading point in unit `direction` travels to
 /// the light's sphere (centre at `to_center` from the point, `radius`; the
 /// point outside): the nearer root of |t·D − C|² = r². With b = D·C and
@@ -242,6 +276,49 @@ mod distance_tests {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn spot_attenuation_follows_the_gltf_falloff() {
+        let (inner, outer) = (
+            crate::math::transcendental::sin_cos(20f64.to_radians()).1,
+            crate::math::transcendental::sin_cos(40f64.to_radians()).1,
+        );
+        assert_eq!(spot_attenuation(1.0, inner, outer), 1.0);
+        assert_eq!(spot_attenuation(inner, inner, outer), 1.0);
+        assert_eq!(spot_attenuation(outer, inner, outer), 0.0);
+        assert_eq!(spot_attenuation(-1.0, inner, outer), 0.0);
+        // Halfway in cosine: t = ½, t² = ¼.
+        let mid = 0.5 * (inner + outer);
+        assert!((spot_attenuation(mid, inner, outer) - 0.25).abs() < 1e-12);
+        // Equal cones: a hard edge.
+        assert_eq!(spot_attenuation(inner + 0.01, inner, inner), 1.0);
+        assert_eq!(spot_attenuation(inner - 0.01, inner, inner), 0.0);
+    }
+
+    #[test]
+    fn spot_light_samples_carry_the_cone() {
+        let l = Light {
+            shape: LightShape::Spot {
+                position: DVec3::new(0.0, 4.0, 0.0),
+                direction: -DVec3::Y,
+                cos_inner: crate::math::transcendental::sin_cos(30f64.to_radians()).1,
+                cos_outer: crate::math::transcendental::sin_cos(45f64.to_radians()).1,
+            },
+            radiance: DVec3::ONE,
+            inverse_square: true,
+        };
+        let mut rng = PixelRng::new(0, 0, 0);
+        // Straight below: inside the inner cone, only 1/d².
+        let s = l.sampler(DVec3::ZERO).sample(0, &mut rng);
+        assert!((s.falloff - 1.0 / 16.0).abs() < 1e-12);
+        // 60° off the axis: dark.
+        let off = DVec3::new(
+            4.0 * crate::math::transcendental::tan(60f64.to_radians()),
+            0.0,
+            0.0,
+        );
+        assert_eq!(l.sampler(off).sample(0, &mut rng).falloff, 0.0);
+    }
 
     #[test]
     fn point_light_sample() {

@@ -13,6 +13,7 @@ use serde::Serialize;
 
 use super::{RayStats, RenderSettings, render_pixel_recorded};
 use crate::geometry::Hit;
+use crate::lights::{LightShape, spot_attenuation};
 use crate::math::Ray;
 use crate::scene::Scene;
 use crate::shading::whitted::{RayKind, Recorder, Stop, Whitted, WhittedSettings};
@@ -34,6 +35,8 @@ pub struct RayNode {
     pub hit: Option<HitInfo>,
     /// ka·Od·Ia.
     pub ambient: [f64; 3],
+    /// The surface's own emission.
+    pub emission: [f64; 3],
     /// Each light's terms.
     pub lights: Vec<LightTerms>,
     /// Weight of the reflected ray (after Fresnel and total internal
@@ -101,6 +104,9 @@ pub struct LightTerms {
     pub specular: [f64; 3],
     /// The light's whole contribution (diffuse + specular).
     pub contribution: [f64; 3],
+    /// A spot light: the mean share of its intensity its cone sends
+    /// towards the point (1 inside the inner cone, 0 outside the outer).
+    pub spot_cone: Option<f64>,
 }
 
 /// A pixel's sample explained.
@@ -190,8 +196,9 @@ struct Shading {
     view: DVec3,
     od: DVec3,
     material: u32,
-    /// Running sums per light: (vis, diffuse, specular, feelers).
-    sums: Option<(DVec3, DVec3, DVec3, usize)>,
+    /// Running sums per light: (vis, diffuse, specular, feelers, spot
+    /// cone share).
+    sums: Option<(DVec3, DVec3, DVec3, usize, f64)>,
 }
 
 impl Recorder for TreeRecorder<'_> {
@@ -251,7 +258,13 @@ impl Recorder for TreeRecorder<'_> {
         }
     }
 
-    fn feeler(&mut self, _light: usize, direction: DVec3, falloff: f64, visibility: DVec3) {
+    fn emission(&mut self, term: DVec3) {
+        if let Some((node, _)) = self.stack.last_mut() {
+            node.emission = term.to_array();
+        }
+    }
+
+    fn feeler(&mut self, light: usize, direction: DVec3, falloff: f64, visibility: DVec3) {
         let scene = self.scene;
         let Some((_, s)) = self.stack.last_mut() else {
             return;
@@ -260,7 +273,16 @@ impl Recorder for TreeRecorder<'_> {
         let (diffuse, specular) = material.phong_terms(s.od, s.n, direction, s.view);
         let sums = s
             .sums
-            .get_or_insert((DVec3::ZERO, DVec3::ZERO, DVec3::ZERO, 0));
+            .get_or_insert((DVec3::ZERO, DVec3::ZERO, DVec3::ZERO, 0, 0.0));
+        if let LightShape::Spot {
+            direction: axis,
+            cos_inner,
+            cos_outer,
+            ..
+        } = scene.lights[light].shape
+        {
+            sums.4 += spot_attenuation(axis.dot(-direction), cos_inner, cos_outer);
+        }
         sums.0 += visibility;
         sums.1 += visibility * falloff * diffuse;
         sums.2 += visibility * falloff * specular;
@@ -272,10 +294,10 @@ impl Recorder for TreeRecorder<'_> {
         let Some((node, s)) = self.stack.last_mut() else {
             return;
         };
-        let (vis, diffuse, specular, feelers) =
+        let (vis, diffuse, specular, feelers, cone) =
             s.sums
                 .take()
-                .unwrap_or((DVec3::ZERO, DVec3::ZERO, DVec3::ZERO, 0));
+                .unwrap_or((DVec3::ZERO, DVec3::ZERO, DVec3::ZERO, 0, 0.0));
         let radiance = scene.lights[light].radiance;
         let n = samples.max(1) as f64;
         node.lights.push(LightTerms {
@@ -286,6 +308,8 @@ impl Recorder for TreeRecorder<'_> {
             diffuse: (radiance * diffuse / n).to_array(),
             specular: (radiance * specular / n).to_array(),
             contribution: contribution.to_array(),
+            spot_cone: matches!(scene.lights[light].shape, LightShape::Spot { .. })
+                .then(|| cone / feelers.max(1) as f64),
         });
     }
 
@@ -337,7 +361,7 @@ impl Recorder for TreeRecorder<'_> {
 }
 
 impl RayNode {
-    /// The sum of the node's terms: ambient + lights + kr·I_r + kt·I_t (or
+    /// The sum of the node's terms: ambient + emission + lights + kr·I_r + kt·I_t (or
     /// the background on a miss). Equals `radiance` up to the rounding of
     /// the order of additions.
     pub fn sum_of_terms(&self) -> DVec3 {
@@ -346,6 +370,7 @@ impl RayNode {
         }
         let v = DVec3::from_array;
         v(self.ambient)
+            + v(self.emission)
             + self.lights.iter().map(|l| v(l.contribution)).sum::<DVec3>()
             + v(self.reflected_term)
             + v(self.refracted_term)

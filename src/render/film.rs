@@ -64,6 +64,13 @@ impl Film {
         self.pixels[i] = value;
     }
 
+    /// Multiplies every pixel by `k` (an exposure).
+    pub fn scale(&mut self, k: f64) {
+        for p in &mut self.pixels {
+            *p *= k;
+        }
+    }
+
     /// The window's pixels, row-major from its top-left.
     pub fn pixels(&self) -> &[DVec3] {
         &self.pixels

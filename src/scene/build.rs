@@ -12,7 +12,7 @@ use toml::Spanned;
 use super::animation::{Animated, Animation, AnimationDesc, Interpolation, Lerp};
 use super::error::Diagnostics;
 use super::format::*;
-use super::models::{ModelCamera, load_model};
+use super::models::{ModelCamera, ModelProjection, load_model};
 use super::resources::{LoadOptions, Resources};
 use super::{Names, Scene};
 
@@ -33,7 +33,18 @@ struct LoadedModel {
     /// Scene material index per material slot of the mesh.
     slots: Arc<[u32]>,
     lights: Vec<Light>,
-    camera: Option<ModelCamera>,
+    cameras: Vec<ModelCamera>,
+}
+
+/// A model's camera placed in the world, and what chose it.
+#[derive(Clone)]
+struct ChosenCamera {
+    camera: Camera,
+    name: String,
+    /// The image shape it was made for (glTF `aspectRatio`).
+    aspect: Option<f64>,
+    /// Named by an object's `camera = "NAME"`.
+    explicit: bool,
 }
 use crate::accel::{Aggregate, Primitive, Shape};
 use crate::camera::{Camera, FovAxis, Projection};
@@ -61,6 +72,9 @@ pub fn check(
         models: BTreeMap::new(),
         model_lights: Vec::new(),
         model_camera: None,
+        camera_request: options.camera.clone(),
+        requested_camera: None,
+        model_camera_names: Vec::new(),
         default_material: None,
         model_failed: false,
         warnings: Vec::new(),
@@ -139,7 +153,58 @@ pub fn check(
     for i in names.lights.len()..names.lights.len() + c.model_lights.len() {
         names.lights.push(format!("model light {i}"));
     }
-    let camera = camera.or(c.model_camera);
+    let mut settings = settings;
+    let chosen = match &c.camera_request {
+        Some(name) => {
+            if c.requested_camera.is_none() && !c.model_failed {
+                let known = if c.model_camera_names.is_empty() {
+                    "no model file brings a camera".to_string()
+                } else {
+                    format!("the models' cameras: {}", c.model_camera_names.join(", "))
+                };
+                c.diags.error(
+                    0..0,
+                    format!("--camera {name}: no model camera has that name ({known})"),
+                );
+            }
+            c.requested_camera.take()
+        }
+        // The scene's own [camera] comes first.
+        None if file.camera.is_some() => None,
+        None => c.model_camera.take(),
+    };
+    if let Some(chosen) = &chosen {
+        if c.model_camera_names.len() > 1 {
+            c.warnings.push(format!(
+                "the models bring {} cameras ({}); using `{}` (choose with camera = \"NAME\" in \
+                 the mesh object or --camera NAME)",
+                c.model_camera_names.len(),
+                c.model_camera_names.join(", "),
+                chosen.name
+            ));
+        }
+        if let Some(aspect) = chosen.aspect {
+            let (w, h) = (
+                file.render.width.as_ref().map(|w| *w.get_ref()),
+                file.render.height.as_ref().map(|h| *h.get_ref()),
+            );
+            (settings.width, settings.height) = crate::settings::image_shape(aspect, w, h);
+            if w.is_some() && h.is_some() {
+                let given = f64::from(settings.width) / f64::from(settings.height);
+                if (given / aspect - 1.0).abs() > 0.01 {
+                    c.warnings.push(format!(
+                        "camera `{}` was made for an image {aspect:.4} times as wide as tall, \
+                         but [render] asks for {}x{} ({given:.4}); the picture is cropped or \
+                         widened",
+                        chosen.name, settings.width, settings.height
+                    ));
+                }
+            } else {
+                settings.aspect = Some(aspect);
+            }
+        }
+    }
+    let camera = chosen.map(|c| c.camera).or(camera);
     // A [camera] that failed to parse is already reported; a model that
     // failed to load may have been the one to bring the camera.
     if camera.is_none()
@@ -154,6 +219,14 @@ pub fn check(
     }
     let mut lights: Vec<Light> = lights;
     lights.append(&mut c.model_lights);
+    if lights.is_empty() && !c.model_failed {
+        // A glTF export without lights renders near-black: say why.
+        c.warnings.push(
+            "the scene has no lights: surfaces show only the ambient term (add [lights.NAME], \
+             or lights to the model)"
+                .into(),
+        );
+    }
     if !c.diags.is_empty() {
         return None;
     }
@@ -219,8 +292,15 @@ struct Check<'d, 's> {
     models: BTreeMap<PathBuf, LoadedModel>,
     /// Lights that models brought, placed in the world.
     model_lights: Vec<Light>,
-    /// The first camera a model brought, placed in the world.
-    model_camera: Option<Camera>,
+    /// The first camera a model brought (or the one an object named),
+    /// placed in the world.
+    model_camera: Option<ChosenCamera>,
+    /// `--camera NAME`.
+    camera_request: Option<String>,
+    /// The model camera `--camera` names, placed in the world.
+    requested_camera: Option<ChosenCamera>,
+    /// Every model camera's name, for messages.
+    model_camera_names: Vec<String>,
     /// Index of the grey material for models that bring none.
     default_material: Option<u32>,
     /// A model file could not be loaded (already reported).
@@ -441,6 +521,8 @@ impl Check<'_, '_> {
             seed: r.seed.as_ref().map_or(defaults.seed, |s| *s.get_ref()),
             frame: 0,
             threads: None,
+            exposure: self.number(&r.exposure, 0.0, "exposure", EXPOSURE),
+            aspect: None,
         }
     }
 
@@ -581,6 +663,11 @@ impl Check<'_, '_> {
                 Some(HighlightDesc::Blinn) => Highlight::Blinn,
                 _ => Highlight::Phong,
             },
+            emission: Texture::Solid(
+                d.emission
+                    .as_ref()
+                    .map_or(DVec3::ZERO, |c| self.color(c, "emission")),
+            ),
         }
     }
 
@@ -610,7 +697,43 @@ impl Check<'_, '_> {
                 );
             }
         };
+        if kind != LightKind::Spot {
+            reject(
+                self,
+                d.inner_angle.as_ref().map(Spanned::span),
+                "inner_angle",
+            );
+            reject(
+                self,
+                d.outer_angle.as_ref().map(Spanned::span),
+                "outer_angle",
+            );
+        }
         let shape = match kind {
+            LightKind::Spot => {
+                needs(self, d.position.is_some(), "position");
+                needs(self, d.direction.is_some(), "direction");
+                reject(self, d.radius.as_ref().map(Spanned::span), "radius");
+                reject(self, d.samples.as_ref().map(Spanned::span), "samples");
+                let outer = self.number(&d.outer_angle, 45.0, "outer_angle", HALF_ANGLE);
+                let inner = self.number(&d.inner_angle, 0.0, "inner_angle", HALF_ANGLE);
+                if inner > outer {
+                    self.error(
+                        desc.span(),
+                        format!(
+                            "{label}: `inner_angle` ({inner}°) is wider than `outer_angle` ({outer}°)"
+                        ),
+                    );
+                }
+                let position = self.at_frame(&d.position);
+                let position = position.as_ref().map(|p| self.point(p, "position"))?;
+                LightShape::Spot {
+                    position,
+                    direction: self.direction(d.direction.as_ref()?, "direction"),
+                    cos_inner: crate::math::transcendental::sin_cos(inner.to_radians()).1,
+                    cos_outer: crate::math::transcendental::sin_cos(outer.to_radians()).1,
+                }
+            }
             LightKind::Point | LightKind::Sphere => {
                 needs(self, d.position.is_some(), "position");
                 reject(self, d.direction.as_ref().map(Spanned::span), "direction");
@@ -727,7 +850,7 @@ impl Check<'_, '_> {
             ObjectKind::Sphere => &["center", "radius"],
             ObjectKind::Plane => &["normal", "distance", "point"],
             ObjectKind::Polygon => &["vertices"],
-            ObjectKind::Mesh => &["file"],
+            ObjectKind::Mesh => &["file", "light_scale", "camera"],
         };
         let present = [
             ("center", d.center.as_ref().map(Spanned::span)),
@@ -737,6 +860,8 @@ impl Check<'_, '_> {
             ("point", d.point.as_ref().map(Spanned::span)),
             ("vertices", d.vertices.as_ref().map(Spanned::span)),
             ("file", d.file.as_ref().map(Spanned::span)),
+            ("light_scale", d.light_scale.as_ref().map(Spanned::span)),
+            ("camera", d.camera.as_ref().map(Spanned::span)),
         ];
         for (key, span) in present {
             if let Some(span) = span.filter(|_| !allowed.contains(&key)) {
@@ -772,7 +897,14 @@ impl Check<'_, '_> {
             return Vec::new();
         };
         let object = has_transform.then_some(transform);
-        self.place_model_extras(&loaded, object.as_ref());
+        let light_scale = self.number(&d.light_scale, 1.0, "light_scale", VALUE);
+        self.place_model_extras(
+            &loaded,
+            object.as_ref(),
+            light_scale,
+            d.camera.as_ref(),
+            label,
+        );
         let materials: Arc<[u32]> = match material {
             Some(Some(m)) => Arc::new([m]),
             Some(None) => return Vec::new(),
@@ -994,15 +1126,23 @@ impl Check<'_, '_> {
             placements,
             slots,
             lights: model.lights,
-            camera: model.camera,
+            cameras: model.cameras,
         };
         self.models.insert(key, loaded.clone());
         Some(loaded)
     }
 
-    /// Puts the lights and camera a model brought into the world, through
-    /// the placement's transform.
-    fn place_model_extras(&mut self, model: &LoadedModel, transform: Option<&Transform>) {
+    /// Puts the lights (times `light_scale`) and cameras a model brought
+    /// into the world, through the placement's transform; `camera` is the
+    /// object's choice among the model's cameras.
+    fn place_model_extras(
+        &mut self,
+        model: &LoadedModel,
+        transform: Option<&Transform>,
+        light_scale: f64,
+        camera: Option<&Spanned<String>>,
+        label: &str,
+    ) {
         let point = |p: DVec3| transform.map_or(p, |t| t.point(p));
         let vector = |v: DVec3| {
             transform
@@ -1018,6 +1158,17 @@ impl Check<'_, '_> {
                 LightShape::Directional { direction } => LightShape::Directional {
                     direction: vector(direction),
                 },
+                LightShape::Spot {
+                    position,
+                    direction,
+                    cos_inner,
+                    cos_outer,
+                } => LightShape::Spot {
+                    position: point(position),
+                    direction: vector(direction),
+                    cos_inner,
+                    cos_outer,
+                },
                 LightShape::Sphere {
                     center,
                     radius,
@@ -1028,19 +1179,80 @@ impl Check<'_, '_> {
                     samples,
                 },
             };
-            self.model_lights.push(light);
+            light.radiance *= light_scale;
+            if light_scale > 0.0 {
+                self.model_lights.push(light);
+            }
         }
-        if let (None, Some(cam)) = (&self.model_camera, &model.camera) {
+        let place = |cam: &ModelCamera, explicit: bool| {
             let position = point(cam.position);
-            self.model_camera = Camera::look_at(
+            let projection = match cam.projection {
+                ModelProjection::Perspective { yfov } => Projection::Perspective {
+                    fov: yfov,
+                    axis: FovAxis::Vertical,
+                },
+                ModelProjection::Orthographic { ymag } => Projection::Orthographic {
+                    view_height: 2.0
+                        * ymag
+                        * transform
+                            .map_or(1.0, |t| t.to_world.transform_vector3(DVec3::Y).length()),
+                },
+            };
+            Camera::look_at(
                 position,
                 position + vector(cam.forward),
                 vector(cam.up),
-                Projection::Perspective {
-                    fov: cam.yfov,
-                    axis: FovAxis::Vertical,
-                },
-            );
+                projection,
+            )
+            .map(|camera| ChosenCamera {
+                camera,
+                name: cam.name.clone(),
+                aspect: cam.aspect_ratio,
+                explicit,
+            })
+        };
+        if let Some(name) = &self.camera_request
+            && self.requested_camera.is_none()
+            && let Some(cam) = model.cameras.iter().find(|c| c.is_named(name))
+        {
+            self.requested_camera = place(cam, true);
+        }
+        self.model_camera_names
+            .extend(model.cameras.iter().map(|c| format!("`{}`", c.name)));
+        match camera {
+            Some(name) => match model.cameras.iter().find(|c| c.is_named(name.get_ref())) {
+                Some(cam) => {
+                    if !self.model_camera.as_ref().is_some_and(|c| c.explicit) {
+                        self.model_camera = place(cam, true);
+                    }
+                }
+                None => {
+                    let known: Vec<String> = model
+                        .cameras
+                        .iter()
+                        .map(|c| format!("`{}`", c.name))
+                        .collect();
+                    self.error(
+                        name.span(),
+                        format!(
+                            "{label}: the model has no camera named `{}` ({})",
+                            limits_cut(name.get_ref()),
+                            if known.is_empty() {
+                                "it has no cameras".to_string()
+                            } else {
+                                format!("its cameras: {}", known.join(", "))
+                            }
+                        ),
+                    );
+                }
+            },
+            None => {
+                if self.model_camera.is_none()
+                    && let Some(cam) = model.cameras.first()
+                {
+                    self.model_camera = place(cam, false);
+                }
+            }
         }
     }
 
@@ -1127,6 +1339,17 @@ const IOR: (fn(f64) -> bool, &str) = (
     "greater than 0 and at most 1e15",
 );
 const UNIT_INTERVAL: (fn(f64) -> bool, &str) = (|x| (0.0..=1.0).contains(&x), "between 0 and 1");
+/// A name from the file for messages, cut to a readable length.
+fn limits_cut(s: &str) -> String {
+    super::models::cut(s, 80)
+}
+
+/// A spot light's cone half-angle, in degrees.
+const HALF_ANGLE: (fn(f64) -> bool, &str) =
+    (|x| (0.0..=90.0).contains(&x), "between 0 and 90 degrees");
+/// Exposure in stops: 2^±64 keeps every pixel finite.
+const EXPOSURE: (fn(f64) -> bool, &str) =
+    (|x| (-64.0..=64.0).contains(&x), "between -64 and 64 stops");
 
 /// A number for messages in the form a person reads: plain for everyday
 /// magnitudes, with an exponent for very large or small ones (1e39, not

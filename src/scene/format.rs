@@ -66,6 +66,8 @@ pub struct RenderDesc {
     pub seed: Option<Spanned<u64>>,
     /// Let transparent objects pass light to shadow feelers.
     pub transparent_shadows: Option<bool>,
+    /// Exposure in stops for 8-bit images.
+    pub exposure: Option<Number>,
 }
 
 /// Camera projections.
@@ -185,6 +187,8 @@ pub struct MaterialDesc {
     pub fresnel: Option<FresnelDesc>,
     /// Highlight model.
     pub highlight: Option<HighlightDesc>,
+    /// Light the surface gives off itself.
+    pub emission: Option<Triple>,
 }
 
 /// Light kinds.
@@ -197,6 +201,8 @@ pub enum LightKind {
     Directional,
     /// A sphere with volume.
     Sphere,
+    /// A point lighting a cone.
+    Spot,
 }
 
 impl LightKind {
@@ -206,6 +212,7 @@ impl LightKind {
             LightKind::Point => "point",
             LightKind::Directional => "directional",
             LightKind::Sphere => "sphere",
+            LightKind::Spot => "spot",
         }
     }
 }
@@ -241,6 +248,10 @@ pub struct LightDesc {
     pub intensity: Option<AnimatedNumber>,
     /// Distance falloff.
     pub falloff: Option<FalloffDesc>,
+    /// Spot: half-angle in degrees of the full-intensity cone.
+    pub inner_angle: Option<Number>,
+    /// Spot: half-angle in degrees beyond which nothing is lit.
+    pub outer_angle: Option<Number>,
 }
 
 /// Object kinds.
@@ -282,6 +293,10 @@ pub struct ObjectDesc {
     pub material: Option<Spanned<String>>,
     /// Model file (meshes), relative to the scene file.
     pub file: Option<Spanned<String>>,
+    /// Meshes: the factor on the lights the model brings (0 drops them).
+    pub light_scale: Option<Number>,
+    /// Meshes: the name of the model's camera to use.
+    pub camera: Option<Spanned<String>>,
     /// Sphere centre.
     pub center: Option<Triple>,
     /// Sphere radius.

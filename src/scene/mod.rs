@@ -182,7 +182,10 @@ impl Scene {
             .extension()
             .and_then(|e| e.to_str())
             .map(str::to_ascii_lowercase);
-        if let Some(ext @ ("obj" | "ply" | "gltf" | "glb")) = ext.as_deref() {
+        if let Some("gltf" | "glb") = ext.as_deref() {
+            return Scene::load_gltf(path, options);
+        }
+        if let Some(ext @ ("obj" | "ply")) = ext.as_deref() {
             // A model given where a scene belongs: say how to use it rather
             // than report its bytes as hundreds of TOML errors.
             let name = path
@@ -233,10 +236,64 @@ impl Scene {
         }
     }
 
+    /// A glTF file as a whole scene: its meshes, cameras and lights, the
+    /// default settings, a neutral grey background (Blender's default
+    /// world colour) and no ambient term; it reads below its own folder.
+    /// Errors are the model's, at 1:1 (the file has no lines to point at).
+    fn load_gltf(path: &Path, options: &LoadOptions) -> Result<Scene, SceneError> {
+        let name = path
+            .file_name()
+            .map_or(String::new(), |n| n.to_string_lossy().into_owned());
+        let source = gltf_scene_text(&name);
+        let base_dir = path
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let origin = path.display().to_string();
+        check(&source, &origin, base_dir, options)
+            .map(build::Checked::finish)
+            .map_err(|e| match e {
+                SceneError::Invalid {
+                    origin,
+                    diagnostics,
+                } => SceneError::Invalid {
+                    origin,
+                    diagnostics: diagnostics
+                        .into_iter()
+                        .map(|d| Diagnostic {
+                            line: 1,
+                            column: 1,
+                            message: if d.message.starts_with("missing [camera]") {
+                                "the file has no camera: add one in Blender (or place the file \
+                                 in a scene file, type = \"mesh\", with a [camera])"
+                                    .to_string()
+                            } else {
+                                d.message
+                                    .strip_prefix("objects[0]: ")
+                                    .map_or(d.message.clone(), str::to_string)
+                            },
+                        })
+                        .collect(),
+                },
+                other => other,
+            })
+    }
+
     /// The built-in demo scene.
     pub fn demo() -> Scene {
         Scene::from_toml(DEFAULT_SCENE, "<built-in scene>").expect("the built-in scene is valid")
     }
+}
+
+/// The scene a glTF file named `name` makes on its own (see
+/// [`Scene::load_gltf`]).
+fn gltf_scene_text(name: &str) -> String {
+    // A TOML string, quoted and escaped whatever the file is called.
+    let quoted = toml::Value::String(name.to_string()).to_string();
+    format!(
+        "[[objects]]\ntype = \"mesh\"\nfile = {quoted}\n\
+         [render]\nbackground = [0.05, 0.05, 0.05]\nambient = [0, 0, 0]\n"
+    )
 }
 
 /// SHA-256 (hex) of the scene text's digest followed by each read file's.

@@ -30,6 +30,9 @@ pub struct LoadOptions {
     pub texture_budget: u64,
     /// The animation frame to build: keyed values are taken at it.
     pub frame: u32,
+    /// The model camera to look through (`--camera NAME`), by its node's
+    /// or its own name; it takes the place of the scene's camera.
+    pub camera: Option<String>,
 }
 
 impl LoadOptions {
@@ -59,6 +62,7 @@ impl LoadOptions {
             allow_read: dirs,
             texture_budget: texture_mib.saturating_mul(1 << 20),
             frame: 0,
+            camera: None,
         })
     }
 }
@@ -69,6 +73,7 @@ impl Default for LoadOptions {
             allow_read: Vec::new(),
             texture_budget: limits::DEFAULT_TEXTURE_MIB << 20,
             frame: 0,
+            camera: None,
         }
     }
 }

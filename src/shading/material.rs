@@ -52,6 +52,9 @@ pub struct Material {
     pub fresnel: Fresnel,
     /// Highlight model.
     pub highlight: Highlight,
+    /// Light the surface gives off itself, added to the local model (as
+    /// POV-Ray's `emission`); in a Whitted renderer it lights nothing else.
+    pub emission: Texture,
 }
 
 impl Default for Material {
@@ -68,6 +71,7 @@ impl Default for Material {
             ior: 1.0,
             fresnel: Fresnel::Off,
             highlight: Highlight::Phong,
+            emission: Texture::Solid(DVec3::ZERO),
         }
     }
 }
@@ -130,6 +134,7 @@ mod tests {
             ior: 1.0,
             fresnel: Fresnel::Off,
             highlight,
+            emission: Texture::Solid(DVec3::ZERO),
         }
     }
 

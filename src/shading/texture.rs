@@ -4,7 +4,7 @@ use std::io::{BufRead, Seek};
 use std::sync::{Arc, LazyLock};
 
 use crate::math::transcendental;
-use glam::{DVec2, DVec3};
+use glam::{DAffine2, DVec2, DVec3};
 use image::{ColorType, DynamicImage, ImageDecoder};
 
 /// Texels as compact as the file allows: 8-bit sRGB stays 8-bit (3 bytes a
@@ -183,6 +183,99 @@ impl ImageTexture {
     }
 }
 
+/// What a texture coordinate outside [0, 1] reads (glTF's wrap modes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Wrap {
+    /// The image tiles the plane.
+    #[default]
+    Repeat,
+    /// The edge texels extend outwards.
+    Clamp,
+    /// The image tiles the plane, every other copy mirrored.
+    Mirror,
+}
+
+/// The texel index `i` of an image `n` texels wide, brought into it by
+/// the wrap mode.
+pub fn wrap_index(i: i64, n: i64, wrap: Wrap) -> i64 {
+    match wrap {
+        Wrap::Repeat => i.rem_euclid(n),
+        Wrap::Clamp => i.clamp(0, n - 1),
+        Wrap::Mirror => {
+            let m = i.rem_euclid(2 * n);
+            if m < n { m } else { 2 * n - 1 - m }
+        }
+    }
+}
+
+/// How an image is read: glTF's sampler and KHR_texture_transform.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sampling {
+    /// Applied to the texture coordinates first, in glTF's convention (v
+    /// running down the image).
+    pub transform: DAffine2,
+    /// Nearest texel (Blender's "Closest") instead of bilinear.
+    pub nearest: bool,
+    /// Wrap modes along u and v.
+    pub wrap: [Wrap; 2],
+}
+
+impl Default for Sampling {
+    fn default() -> Self {
+        Sampling {
+            transform: DAffine2::IDENTITY,
+            nearest: false,
+            wrap: [Wrap::Repeat; 2],
+        }
+    }
+}
+
+/// KHR_texture_transform's matrix: uv' = T(offset)·R(rotation)·S(scale)·uv
+/// in glTF's texture space, the rotation (radians) counter-clockwise seen
+/// with v running down: u' = cos·u + sin·v, v' = −sin·u + cos·v.
+pub fn texture_transform(offset: DVec2, rotation: f64, scale: DVec2) -> DAffine2 {
+    let (s, c) = transcendental::sin_cos(rotation);
+    let r = glam::DMat2::from_cols(DVec2::new(c, -s), DVec2::new(s, c));
+    DAffine2::from_mat2_translation(r * glam::DMat2::from_diagonal(scale), offset)
+}
+
+impl ImageTexture {
+    /// The colour at `uv` (v running up the image, as Prism's texture
+    /// coordinates do) read as `sampling` says.
+    pub fn sample(&self, uv: DVec2, sampling: &Sampling) -> DVec3 {
+        if self.width == 0 || self.height == 0 || !uv.is_finite() {
+            return DVec3::ONE;
+        }
+        // Into glTF's space (v down), transformed.
+        let g = sampling
+            .transform
+            .transform_point2(DVec2::new(uv.x, 1.0 - uv.y));
+        if !g.is_finite() {
+            return DVec3::ONE;
+        }
+        let (w, h) = (self.width as i64, self.height as i64);
+        // Far outside the image every mode has repeated or clamped long
+        // before; keep the integer conversion exact.
+        let limit = 1e15;
+        let x = (g.x * w as f64).clamp(-limit, limit);
+        let y = (g.y * h as f64).clamp(-limit, limit);
+        let texel = |i: f64, j: f64| {
+            let i = wrap_index(i as i64, w, sampling.wrap[0]) as usize;
+            let j = wrap_index(j as i64, h, sampling.wrap[1]) as usize;
+            self.texel(j * self.width + i)
+        };
+        if sampling.nearest {
+            return texel(x.floor(), y.floor());
+        }
+        let (x, y) = (x - 0.5, y - 0.5);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let top = texel(x0, y0).lerp(texel(x0 + 1.0, y0), fx);
+        let bottom = texel(x0, y0 + 1.0).lerp(texel(x0 + 1.0, y0 + 1.0), fx);
+        top.lerp(bottom, fy)
+    }
+}
+
 /// A colour pattern over space.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Texture {
@@ -214,6 +307,15 @@ pub enum Texture {
         /// Multiplies the image (OBJ's Kd with map_Kd).
         tint: DVec3,
     },
+    /// An image read through a sampler and a texture transform (glTF).
+    Sampled {
+        /// The image.
+        image: Arc<ImageTexture>,
+        /// Multiplies the image.
+        tint: DVec3,
+        /// How it is read.
+        sampling: Sampling,
+    },
 }
 
 impl Texture {
@@ -244,6 +346,11 @@ impl Texture {
                 }
             }
             Texture::Image { ref image, tint } => tint * image.lookup(uv),
+            Texture::Sampled {
+                ref image,
+                tint,
+                ref sampling,
+            } => tint * image.sample(uv, sampling),
         }
     }
 }
@@ -274,6 +381,72 @@ mod tests {
         assert!((img.lookup(DVec2::new(0.5, 0.5)) - DVec3::splat(0.5)).length() < 1e-12);
         // Wraps around: u = 1.25 is u = 0.25.
         assert_eq!(img.lookup(DVec2::new(1.25, 0.5)), DVec3::ZERO);
+    }
+
+    #[test]
+    fn wrap_modes_fold_indices_into_the_image() {
+        let n = 4;
+        let all = |w| (-5..9).map(|i| wrap_index(i, n, w)).collect::<Vec<_>>();
+        assert_eq!(
+            all(Wrap::Repeat),
+            [3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0]
+        );
+        assert_eq!(all(Wrap::Clamp), [0, 0, 0, 0, 0, 0, 1, 2, 3, 3, 3, 3, 3, 3]);
+        // Mirrored: 0 1 2 3 3 2 1 0 0 1 …, and the same to the left.
+        assert_eq!(
+            all(Wrap::Mirror),
+            [3, 3, 2, 1, 0, 0, 1, 2, 3, 3, 2, 1, 0, 0]
+        );
+    }
+
+    #[test]
+    fn texture_transform_is_offset_rotation_scale() {
+        let t = texture_transform(DVec2::new(0.5, 0.25), 0.0, DVec2::splat(2.0));
+        assert_eq!(
+            t.transform_point2(DVec2::new(0.5, 0.5)),
+            DVec2::new(1.5, 1.25)
+        );
+        // A quarter turn: u' = v, v' = −u.
+        let r = texture_transform(DVec2::ZERO, std::f64::consts::FRAC_PI_2, DVec2::ONE);
+        let p = r.transform_point2(DVec2::new(1.0, 0.0));
+        assert!((p - DVec2::new(0.0, -1.0)).length() < 1e-15, "{p}");
+        let p = r.transform_point2(DVec2::new(0.0, 1.0));
+        assert!((p - DVec2::new(1.0, 0.0)).length() < 1e-15, "{p}");
+    }
+
+    #[test]
+    fn sampling_reads_nearest_or_bilinear_through_the_transform() {
+        // 2×1: black, white.
+        let img = ImageTexture::from_linear(2, 1, vec![[0.0; 3], [1.0; 3]]);
+        let linear = Sampling::default();
+        // The default reads as `lookup` does.
+        for u in [0.1, 0.25, 0.5, 0.6, 1.3, -0.2] {
+            let uv = DVec2::new(u, 0.5);
+            assert!(
+                (img.sample(uv, &linear) - img.lookup(uv)).length() < 1e-12,
+                "{u}"
+            );
+        }
+        let nearest = Sampling {
+            nearest: true,
+            ..linear
+        };
+        assert_eq!(img.sample(DVec2::new(0.49, 0.5), &nearest), DVec3::ZERO);
+        assert_eq!(img.sample(DVec2::new(0.51, 0.5), &nearest), DVec3::ONE);
+        // Clamped: far right stays white, far left black.
+        let clamp = Sampling {
+            wrap: [Wrap::Clamp; 2],
+            ..nearest
+        };
+        assert_eq!(img.sample(DVec2::new(7.0, 0.5), &clamp), DVec3::ONE);
+        assert_eq!(img.sample(DVec2::new(-7.0, 0.5), &clamp), DVec3::ZERO);
+        // Tiled twice (scale 2): u = 0.3 reads u = 0.6, white.
+        let tiled = Sampling {
+            transform: texture_transform(DVec2::ZERO, 0.0, DVec2::splat(2.0)),
+            ..nearest
+        };
+        assert_eq!(img.sample(DVec2::new(0.3, 0.5), &tiled), DVec3::ONE);
+        assert_eq!(img.sample(DVec2::new(0.2, 0.5), &tiled), DVec3::ZERO);
     }
 
     #[test]

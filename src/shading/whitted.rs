@@ -135,6 +135,10 @@ pub trait Recorder {
     fn ambient(&mut self, term: DVec3) {
         let _ = term;
     }
+    /// The light the surface gives off itself.
+    fn emission(&mut self, term: DVec3) {
+        let _ = term;
+    }
     /// One sample of light `light` towards unit `direction`, with its
     /// falloff, and the visibility its shadow feeler found (not called for
     /// samples behind the surface, which need no feeler).
@@ -283,12 +287,15 @@ impl<'a> Whitted<'a> {
             },
             view: -ray.direction,
             material,
-            od: material.texture.color(hit.point, hit.normal, hit.uv),
+            od: material.texture.color(hit.point, hit.normal, hit.uv) * hit.color,
         };
 
         rec.hit(&hit, entering, point.n, point.od);
         let mut color = material.ka * point.od * self.scene.ambient;
         rec.ambient(color);
+        let emitted = material.emission.color(hit.point, hit.normal, hit.uv);
+        rec.emission(emitted);
+        color += emitted;
         for (index, light) in self.scene.lights.iter().enumerate() {
             color += self.direct(index, light, &point, rng, stats, rec);
         }

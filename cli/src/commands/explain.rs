@@ -149,12 +149,18 @@ fn node(n: &RayNode, indent: usize, out: &mut String) {
                 ),
             );
             line(out, format!("  ambient ka*Od*Ia = {}", rgb(n.ambient)));
+            if n.emission != [0.0; 3] {
+                line(out, format!("  emission = {}", rgb(n.emission)));
+            }
             for l in &n.lights {
                 line(
                     out,
                     format!(
-                        "  light `{}`: {} samples, {} feelers, visible {}; diffuse kd*Od*max(0,N.L) = {}, specular ks*max(0,R.V)^n = {}; sum {}",
+                        "  light `{}`{}: {} samples, {} feelers, visible {}; diffuse kd*Od*max(0,N.L) = {}, specular ks*max(0,R.V)^n = {}; sum {}",
                         l.light,
+                        l.spot_cone.map_or(String::new(), |c| format!(
+                            " (spot: its cone sends {c:.6} of its intensity here)"
+                        )),
                         l.samples,
                         l.feelers,
                         rgb(l.visible_fraction),

@@ -89,14 +89,39 @@ pub struct SettingsArgs {
     /// Seed of the sample streams (overrides the scene).
     #[arg(long)]
     seed: Option<u64>,
+    /// Exposure in stops for PNG and PPM output: radiance × 2^EV before
+    /// the 8-bit encoding (overrides the scene; EXR and HDR stay linear).
+    #[arg(long, value_name = "EV", allow_hyphen_values = true,
+          value_parser = parse_exposure)]
+    exposure: Option<f64>,
+}
+
+fn parse_exposure(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if (-64.0..=64.0).contains(&v) => Ok(v),
+        _ => Err(format!(
+            "expected a number of stops between -64 and 64, got `{s}`"
+        )),
+    }
 }
 
 impl SettingsArgs {
     /// The scene's settings with these overrides.
     pub fn apply(&self, scene: &RenderSettings) -> RenderSettings {
+        // A model camera's shape: one side given here derives the other.
+        let (width, height) = match (scene.aspect, self.width, self.height) {
+            (Some(aspect), Some(_), None) | (Some(aspect), None, Some(_)) => {
+                prism::settings::image_shape(aspect, self.width, self.height)
+            }
+            _ => (
+                self.width.unwrap_or(scene.width),
+                self.height.unwrap_or(scene.height),
+            ),
+        };
         RenderSettings {
-            width: self.width.unwrap_or(scene.width),
-            height: self.height.unwrap_or(scene.height),
+            exposure: self.exposure.unwrap_or(scene.exposure),
+            width,
+            height,
             spp: self.spp.unwrap_or(scene.spp),
             max_depth: self.max_depth.unwrap_or(scene.max_depth),
             seed: self.seed.unwrap_or(scene.seed),
@@ -451,7 +476,17 @@ impl Job<'_> {
                 }
                 o
             }),
-            None => render_region(self.scene, settings, region, &observer),
+            None => render_region(self.scene, settings, region, &observer).map(|mut o| {
+                let eight_bit = matches!(
+                    OutputFormat::from_path(self.output),
+                    Ok(OutputFormat::Png | OutputFormat::Ppm)
+                );
+                if eight_bit && settings.exposure != 0.0 {
+                    o.film
+                        .scale(prism::settings::exposure_scale(settings.exposure));
+                }
+                o
+            }),
         };
         let output = match rendered {
             Ok(o) => o,

@@ -385,6 +385,11 @@ fn make(
                 p.film.clone().filter(|_| p.generation == stop.generation)
             }
             .ok_or("the render is not finished yet")?;
+            // The scene's exposure applies to the 8-bit PNG only.
+            let mut film = film;
+            if kind == Kind::Png && settings.exposure != 0.0 {
+                film.scale(prism::settings::exposure_scale(settings.exposure));
+            }
             let provenance = prism::image_io::Provenance::of(scene, settings);
             let ext = if kind == Kind::Png { "png" } else { "exr" };
             let path = dir.path().join(format!("render.{ext}"));

@@ -27,18 +27,58 @@ use gltf::json::mesh::{Mode, Semantic};
 use gltf::json::validation::Checked;
 use gltf::json::{self, Index, Root};
 
-use super::{Model, ModelCamera, ModelError};
+use super::{Model, ModelCamera, ModelError, ModelProjection};
 use crate::geometry::MeshData;
 use crate::lights::{Light, LightShape};
 use crate::limits::{MAX_MODEL_PLACEMENTS, MAX_VALUE};
 use crate::scene::resources::{Resources, TextureKey};
+use crate::shading::texture::{Sampling, Wrap, texture_transform};
 use crate::shading::{Fresnel, Highlight, Material, Texture};
+
+/// Luminous efficacy the glTF specification converts with (lm/W), as
+/// Blender's exporter does.
+pub const LUMENS_PER_WATT: f64 = 683.0;
+
+/// A KHR_lights_punctual intensity — candela (lm/sr) for point and spot
+/// lights, lux (lm/m²) for directional ones — in radiometric units (W/sr,
+/// W/m²), which is what Prism's light intensity Il is.
+pub fn photometric_to_radiometric(intensity: f64) -> f64 {
+    intensity / LUMENS_PER_WATT
+}
+
+/// The Whitted coefficient of a Lambertian term of reflectance `albedo`:
+/// albedo / π, the glTF metallic-roughness model's diffuse BRDF (and
+/// Cycles'), so that kd·Od·Il·N·L/d² is the radiance a Lambertian surface
+/// of that albedo returns.
+pub fn lambertian(albedo: f64) -> f64 {
+    albedo / std::f64::consts::PI
+}
 
 const SUPPORTED: &[&str] = &[
     "KHR_lights_punctual",
     "KHR_materials_transmission",
     "KHR_materials_ior",
+    "KHR_materials_emissive_strength",
+    "KHR_texture_transform",
 ];
+
+/// What to change in Blender's glTF export for a required extension Prism
+/// cannot read.
+fn required_extension_advice(ext: &str) -> &'static str {
+    match ext {
+        "KHR_draco_mesh_compression" | "EXT_meshopt_compression" => {
+            "compressed meshes; in Blender's glTF export untick Data > Compression"
+        }
+        "EXT_texture_webp" | "KHR_texture_basisu" => {
+            "images Prism cannot decode; in Blender's glTF export set Material > Images to \
+             Automatic or JPEG (not WebP)"
+        }
+        "KHR_mesh_quantization" => {
+            "quantized vertex data; export without quantization (Blender writes float vertices)"
+        }
+        _ => "export without it (or with the feature that needs it turned off)",
+    }
+}
 
 pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
     let err = |message: String| ModelError::new(path, None, message);
@@ -59,7 +99,8 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
         .find(|e| !SUPPORTED.contains(&e.as_str()))
     {
         return Err(err(format!(
-            "requires the extension `{ext}`, which Prism does not support"
+            "requires the extension `{ext}`, which Prism does not support: {}",
+            required_extension_advice(ext)
         )));
     }
     let dir = path.parent().unwrap_or(Path::new("."));
@@ -69,6 +110,7 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
         buffers: &buffers,
         file: path,
         warnings: Vec::new(),
+        ignored: Default::default(),
     };
     let mut materials = Vec::with_capacity(root.materials.len());
     for i in 0..root.materials.len() {
@@ -104,12 +146,18 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
         materials: Vec::new(),
         warnings: Vec::new(),
         lights: Vec::new(),
-        camera: None,
+        cameras: Vec::new(),
     };
-    // glTF mesh index → index into model.meshes: a mesh used by several
-    // nodes (or by a node placed many times) is read and stored once.
-    let mut mesh_slots: HashMap<usize, usize> = HashMap::new();
-    let mut stack: Vec<(usize, DMat4)> = roots.iter().map(|&n| (n, DMat4::IDENTITY)).collect();
+    // glTF mesh index → index into model.meshes (`None`: no triangles): a
+    // mesh used by several nodes (or by a node placed many times) is read
+    // and stored once.
+    let mut mesh_slots: HashMap<usize, Option<usize>> = HashMap::new();
+    // Depth first in node order (children pushed in reverse), so "the
+    // first camera" is the first one met reading the scene's nodes in
+    // order, as Blender lists them.
+    let mut stack: Vec<(usize, DMat4)> =
+        roots.iter().rev().map(|&n| (n, DMat4::IDENTITY)).collect();
+    let mut any_mesh = false;
     while let Some((n, parent)) = stack.pop() {
         let node = &root.nodes[n];
         let world = parent * local_transform(node);
@@ -118,11 +166,11 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
                 "nodes[{n}]: its world transform overflows (not finite)"
             )));
         }
-        stack.extend(graph.children[n].iter().map(|&c| (c, world)));
-        if let Some(c) = node.camera {
-            reader
-                .camera(n, c.value(), &world, &mut model.camera)
-                .map_err(err)?;
+        stack.extend(graph.children[n].iter().rev().map(|&c| (c, world)));
+        if let Some(c) = node.camera
+            && let Some(camera) = reader.camera(n, c.value(), &world).map_err(err)?
+        {
+            model.cameras.push(camera);
         }
         if let Some(light) = node
             .extensions
@@ -133,6 +181,7 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
             model.lights.push(l);
         }
         let Some(mesh) = node.mesh else { continue };
+        any_mesh = true;
         if DMat3::from_mat4(world).determinant().abs() < 1e-12 {
             return Err(err(format!(
                 "nodes[{n}]: its world transform is singular (a zero scale)"
@@ -144,17 +193,66 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
                 let data = reader
                     .mesh(mesh.value(), n, default_slot, &mut needs_default)
                     .map_err(err)?;
-                model.meshes.push(data);
-                mesh_slots.insert(mesh.value(), model.meshes.len() - 1);
-                model.meshes.len() - 1
+                // Only lines or points: skipped (already warned about).
+                let slot = (!data.triangles.is_empty()).then(|| {
+                    model.meshes.push(data);
+                    model.meshes.len() - 1
+                });
+                mesh_slots.insert(mesh.value(), slot);
+                slot
             }
         };
-        model.placements.push((index, world));
+        if let Some(index) = index {
+            model.placements.push((index, world));
+        }
+    }
+    if any_mesh && model.meshes.is_empty() {
+        return Err(err(
+            "has no triangles: every primitive of its meshes is lines or points, which Prism \
+             does not render (in Blender, give the mesh faces)"
+                .into(),
+        ));
     }
     if needs_default {
         materials.push(Material::default());
     }
     model.materials = materials;
+    for ext in &root.extensions_used {
+        if !SUPPORTED.contains(&ext.as_str()) {
+            reader.ignore(&format!("the extension {}", short(ext)), "extensionsUsed");
+        }
+    }
+    for (present, feature) in [
+        (!root.animations.is_empty(), "animations"),
+        (!root.skins.is_empty(), "skins"),
+    ] {
+        if present {
+            reader.ignore(feature, "");
+        }
+    }
+    if !reader.ignored.is_empty() {
+        let list: Vec<String> = reader
+            .ignored
+            .iter()
+            .map(|(feature, places)| {
+                let places: Vec<&str> = places
+                    .iter()
+                    .map(String::as_str)
+                    .filter(|p| !p.is_empty())
+                    .collect();
+                match places.as_slice() {
+                    [] | ["extensionsUsed"] => feature.clone(),
+                    [a] => format!("{feature} ({a})"),
+                    [a, b] => format!("{feature} ({a}, {b})"),
+                    [a, b, rest @ ..] => format!("{feature} ({a}, {b} and {} more)", rest.len()),
+                }
+            })
+            .collect();
+        reader.warn(format!(
+            "Prism ignores what it cannot render of this file: {}",
+            list.join("; ")
+        ));
+    }
     model.warnings = reader.warnings;
     Ok(model)
 }
@@ -427,6 +525,8 @@ struct Reader<'a> {
     buffers: &'a [Vec<u8>],
     file: &'a Path,
     warnings: Vec<String>,
+    /// Features used but not rendered → where (JSON paths): one warning.
+    ignored: std::collections::BTreeMap<String, Vec<String>>,
 }
 
 /// An accessor's elements, every byte of them known to lie in its buffer.
@@ -521,6 +621,20 @@ const TEXCOORD: Expect = Expect {
         (ComponentType::U8, true),
         (ComponentType::U16, true),
     ],
+};
+/// COLOR_0: float or normalized unsigned byte/short, RGB or RGBA.
+const COLOR_COMPONENTS: &[(ComponentType, bool)] = &[
+    (ComponentType::F32, false),
+    (ComponentType::U8, true),
+    (ComponentType::U16, true),
+];
+const COLOR3: Expect = Expect {
+    kind: Type::Vec3,
+    components: COLOR_COMPONENTS,
+};
+const COLOR4: Expect = Expect {
+    kind: Type::Vec4,
+    components: COLOR_COMPONENTS,
 };
 const INDICES: Expect = Expect {
     kind: Type::Scalar,
@@ -675,10 +789,25 @@ impl<'a> Reader<'a> {
         for (p, primitive) in mesh.primitives.iter().enumerate() {
             let at = format!("meshes[{m}].primitives[{p}]");
             if primitive.mode != Checked::Valid(Mode::Triangles) {
-                self.warn(format!("{at}: not triangles; skipped"));
+                let name = mesh
+                    .name
+                    .as_deref()
+                    .map_or(String::new(), |n| format!(" (mesh `{}`)", short(n)));
+                let what = match primitive.mode {
+                    Checked::Valid(Mode::Points) => "points",
+                    Checked::Valid(Mode::Lines | Mode::LineLoop | Mode::LineStrip) => "lines",
+                    Checked::Valid(_) => "triangle strips or fans",
+                    Checked::Invalid => "of an unknown mode",
+                };
+                self.warn(format!(
+                    "{at}{name}: {what}, not triangles; skipped (Prism renders triangles only)"
+                ));
                 continue;
             }
             let attribute = |s: Semantic| primitive.attributes.get(&Checked::Valid(s)).copied();
+            if !primitive.targets.as_ref().is_none_or(Vec::is_empty) {
+                self.ignore("morph targets", &at);
+            }
             let Some(position) = attribute(Semantic::Positions) else {
                 return Err(format!("{at}.attributes.POSITION: missing"));
             };
@@ -730,6 +859,26 @@ impl<'a> Reader<'a> {
                         .extend((0..count).map(|i| DVec2::new(uvs.get(i, 0), 1.0 - uvs.get(i, 1))));
                 }
                 _ => data.uvs.clear(),
+            }
+            match attribute(Semantic::Colors(0)) {
+                Some(c) if data.colors.len() == base => {
+                    let at = format!("{at}.attributes.COLOR_0");
+                    let four = self.root.accessors.get(c.value()).map(|a| a.type_)
+                        == Some(Checked::Valid(Type::Vec4));
+                    let colors = self.elements(c, &at, if four { &COLOR4 } else { &COLOR3 })?;
+                    if colors.count != count {
+                        return Err(format!(
+                            "{at}: {} colours for {count} positions",
+                            colors.count
+                        ));
+                    }
+                    // Linear RGB; alpha (VEC4) is not used.
+                    data.colors.extend((0..count).map(|i| {
+                        DVec3::new(colors.get(i, 0), colors.get(i, 1), colors.get(i, 2))
+                            .clamp(DVec3::ZERO, DVec3::splat(MAX_VALUE))
+                    }));
+                }
+                _ => data.colors.clear(),
             }
             let slot = match primitive.material {
                 Some(i) if i.value() < self.root.materials.len() => i.value() as u32,
@@ -787,6 +936,9 @@ impl<'a> Reader<'a> {
         if data.normals.len() != data.positions.len() {
             data.normals.clear();
         }
+        if data.colors.len() != data.positions.len() {
+            data.colors.clear();
+        }
         if data.uvs.len() != data.positions.len() {
             data.uvs.clear();
         }
@@ -829,23 +981,55 @@ impl<'a> Reader<'a> {
             .max(0.02);
         let texture = match &pbr.base_color_texture {
             None => Texture::Solid(base),
-            Some(info) => Texture::Image {
-                image: self.image(
-                    info.index.value(),
-                    &format!("{at}.pbrMetallicRoughness.baseColorTexture"),
-                    res,
-                )?,
-                tint: base,
-            },
+            Some(info) => self.texture(
+                info,
+                base,
+                &format!("{at}.pbrMetallicRoughness.baseColorTexture"),
+                res,
+            )?,
         };
-        if m.normal_texture.is_some()
-            || m.occlusion_texture.is_some()
-            || m.emissive_texture.is_some()
-            || pbr.metallic_roughness_texture.is_some()
-        {
-            self.warn("only base colour textures are used; normal, occlusion, emissive and metallic-roughness maps are ignored".into());
+        for (present, feature) in [
+            (m.normal_texture.is_some(), "normal maps"),
+            (m.occlusion_texture.is_some(), "occlusion maps"),
+            (
+                pbr.metallic_roughness_texture.is_some(),
+                "metallic-roughness maps",
+            ),
+            (
+                m.alpha_mode != Checked::Valid(json::material::AlphaMode::Opaque),
+                "alpha (alphaMode BLEND or MASK)",
+            ),
+        ] {
+            if present {
+                self.ignore(feature, &at);
+            }
         }
         let ext = m.extensions.as_ref();
+        let strength = match ext.and_then(|e| e.emissive_strength.as_ref()) {
+            Some(s) => {
+                let v = f64::from(s.emissive_strength.0);
+                if !v.is_finite() || !(0.0..=MAX_VALUE).contains(&v) {
+                    return Err(format!(
+                        "{at}.extensions.KHR_materials_emissive_strength.emissiveStrength: {v} \
+                         must be a finite number between 0 and {MAX_VALUE:e}"
+                    ));
+                }
+                v
+            }
+            None => 1.0,
+        };
+        let mut emissive = [0.0; 3];
+        for (c, value) in emissive.iter_mut().enumerate() {
+            *value =
+                self.unit_factor(m.emissive_factor.0[c], &format!("{at}.emissiveFactor[{c}]"))?;
+        }
+        let emissive = DVec3::from_array(emissive) * strength;
+        let emission = match &m.emissive_texture {
+            Some(info) if emissive != DVec3::ZERO => {
+                self.texture(info, emissive, &format!("{at}.emissiveTexture"), res)?
+            }
+            _ => Texture::Solid(emissive),
+        };
         let transmission = match ext.and_then(|e| e.transmission.as_ref()) {
             Some(t) => self.unit_factor(
                 t.transmission_factor.0,
@@ -869,11 +1053,16 @@ impl<'a> Reader<'a> {
         // light is tinted by it too (KHR_materials_transmission).
         let (kr, kt) = Material::conserving(metallic * base, transmission * base);
         let alpha = roughness * roughness;
+        let albedo = (1.0 - metallic) * (1.0 - transmission);
         Ok(Material {
             texture,
-            ka: 0.1,
-            kd: (1.0 - metallic) * (1.0 - transmission),
-            ks: 1.0 - roughness,
+            // Under a uniform ambient of radiance Ia a Lambertian surface
+            // returns albedo × Ia: its diffuse integrated over the sky.
+            ka: albedo,
+            kd: lambertian(albedo),
+            // Scaled with the diffuse, so the highlight keeps its weight
+            // beside it.
+            ks: lambertian(1.0 - roughness),
             shininess: (2.0 / (alpha * alpha) - 2.0).clamp(1.0, 10_000.0),
             kr,
             kt,
@@ -884,6 +1073,82 @@ impl<'a> Reader<'a> {
                 Fresnel::Off
             },
             highlight: Highlight::Blinn,
+            emission,
+        })
+    }
+
+    /// Notes a feature the file uses that Prism does not render, and where.
+    fn ignore(&mut self, feature: &str, at: &str) {
+        let places = self.ignored.entry(feature.to_string()).or_default();
+        if !places.iter().any(|p| p == at) {
+            places.push(at.to_string());
+        }
+    }
+
+    /// The texture `info` refers to, times `tint`, read through its
+    /// sampler and KHR_texture_transform.
+    fn texture(
+        &mut self,
+        info: &json::texture::Info,
+        tint: DVec3,
+        at: &str,
+        res: &mut Resources,
+    ) -> Result<Texture, String> {
+        let image = self.image(info.index.value(), at, res)?;
+        let mut sampling = Sampling::default();
+        let mut tex_coord = info.tex_coord;
+        if let Some(t) = info
+            .extensions
+            .as_ref()
+            .and_then(|e| e.texture_transform.as_ref())
+        {
+            let finite = |v: &[f32]| v.iter().all(|x| x.is_finite() && x.abs() <= 1e15);
+            if !finite(&t.offset.0) || !finite(&t.scale.0) || !finite(&[t.rotation.0]) {
+                return Err(format!(
+                    "{at}.extensions.KHR_texture_transform: offset, rotation and scale must be finite numbers"
+                ));
+            }
+            sampling.transform = texture_transform(
+                DVec2::from_array(t.offset.0.map(f64::from)),
+                f64::from(t.rotation.0),
+                DVec2::from_array(t.scale.0.map(f64::from)),
+            );
+            tex_coord = t.tex_coord.unwrap_or(tex_coord);
+        }
+        if tex_coord != 0 {
+            self.ignore("texture coordinate sets other than TEXCOORD_0", at);
+        }
+        let texture = lookup(
+            &self.root.textures,
+            info.index.value(),
+            &format!("{at}.index"),
+            "texture",
+        )?;
+        if let Some(s) = texture.sampler {
+            let t = info.index.value();
+            let sampler = lookup(
+                &self.root.samplers,
+                s.value(),
+                &format!("textures[{t}].sampler"),
+                "sampler",
+            )?;
+            use json::texture::{MagFilter, WrappingMode};
+            sampling.nearest = sampler.mag_filter == Some(Checked::Valid(MagFilter::Nearest));
+            let wrap = |w: &Checked<WrappingMode>| match w {
+                Checked::Valid(WrappingMode::ClampToEdge) => Wrap::Clamp,
+                Checked::Valid(WrappingMode::MirroredRepeat) => Wrap::Mirror,
+                _ => Wrap::Repeat,
+            };
+            sampling.wrap = [wrap(&sampler.wrap_s), wrap(&sampler.wrap_t)];
+        }
+        Ok(if sampling == Sampling::default() {
+            Texture::Image { image, tint }
+        } else {
+            Texture::Sampled {
+                image,
+                tint,
+                sampling,
+            }
         })
     }
 
@@ -928,21 +1193,30 @@ impl<'a> Reader<'a> {
         }
     }
 
-    /// The first perspective camera, placed by `world`.
+    /// Camera `c` of node `node`, placed by `world`.
     fn camera(
         &mut self,
         node: usize,
         c: usize,
         world: &DMat4,
-        found: &mut Option<ModelCamera>,
-    ) -> Result<(), String> {
+    ) -> Result<Option<ModelCamera>, String> {
         let camera = self.root.cameras.get(c).ok_or_else(|| {
             format!(
                 "nodes[{node}].camera: camera {c} does not exist ({} cameras)",
                 self.root.cameras.len()
             )
         })?;
-        match (&camera.perspective, &camera.orthographic) {
+        let positive = |v: f32, at: &str| -> Result<f64, String> {
+            let v = f64::from(v);
+            if v.is_finite() && v > 0.0 && v <= MAX_VALUE {
+                Ok(v)
+            } else {
+                Err(format!(
+                    "cameras[{c}].{at}: {v}; expected a positive number"
+                ))
+            }
+        };
+        let (projection, aspect_ratio) = match (&camera.perspective, &camera.orthographic) {
             (Some(p), _) => {
                 let yfov = f64::from(p.yfov);
                 if !(yfov > 0.0 && yfov < std::f64::consts::PI) {
@@ -950,28 +1224,42 @@ impl<'a> Reader<'a> {
                         "cameras[{c}].perspective.yfov: {yfov} rad; expected a field of view between 0 and π"
                     ));
                 }
-                if found.is_none() {
-                    let forward = world.transform_vector3(-DVec3::Z).normalize_or_zero();
-                    let up = world.transform_vector3(DVec3::Y).normalize_or_zero();
-                    if forward == DVec3::ZERO || up == DVec3::ZERO {
-                        return Err(format!("nodes[{node}]: the camera's transform is singular"));
-                    }
-                    *found = Some(ModelCamera {
-                        position: world.transform_point3(DVec3::ZERO),
-                        forward,
-                        up,
-                        yfov,
-                    });
-                }
+                let aspect = match p.aspect_ratio {
+                    Some(a) => Some(positive(a, "perspective.aspectRatio")?),
+                    None => None,
+                };
+                (ModelProjection::Perspective { yfov }, aspect)
             }
-            (None, Some(_)) => self.warn("orthographic cameras are ignored".into()),
+            (None, Some(o)) => {
+                let ymag = positive(o.ymag, "orthographic.ymag")?;
+                let xmag = positive(o.xmag, "orthographic.xmag")?;
+                (ModelProjection::Orthographic { ymag }, Some(xmag / ymag))
+            }
             (None, None) => {
                 return Err(format!(
                     "cameras[{c}]: neither perspective nor orthographic"
                 ));
             }
+        };
+        let forward = world.transform_vector3(-DVec3::Z).normalize_or_zero();
+        let up = world.transform_vector3(DVec3::Y).normalize_or_zero();
+        if forward == DVec3::ZERO || up == DVec3::ZERO {
+            return Err(format!("nodes[{node}]: the camera's transform is singular"));
         }
-        Ok(())
+        let node_name = self.root.nodes[node].name.clone();
+        let own = camera.name.clone();
+        Ok(Some(ModelCamera {
+            name: node_name
+                .clone()
+                .or_else(|| own.clone())
+                .unwrap_or_else(|| format!("cameras[{c}]")),
+            alias: own.filter(|_| node_name.is_some()),
+            aspect_ratio,
+            projection,
+            position: world.transform_point3(DVec3::ZERO),
+            forward,
+            up,
+        }))
     }
 
     /// A KHR_lights_punctual light, placed by `world`.
@@ -1011,18 +1299,38 @@ impl<'a> Reader<'a> {
                 LightShape::Point { position }
             }
             Checked::Valid(json::extensions::scene::khr_lights_punctual::Type::Spot) => {
-                self.warn("spot lights become point lights (the cone is ignored)".into());
-                LightShape::Point { position }
+                let Some(spot) = light.spot.as_ref() else {
+                    return Err(format!("{at}: a spot light needs `spot`"));
+                };
+                let (inner, outer) = (
+                    f64::from(spot.inner_cone_angle),
+                    f64::from(spot.outer_cone_angle),
+                );
+                if !(0.0..=std::f64::consts::FRAC_PI_2).contains(&outer)
+                    || !(0.0..=outer).contains(&inner)
+                {
+                    return Err(format!(
+                        "{at}.spot: innerConeAngle {inner} and outerConeAngle {outer} rad; \
+                         expected 0 ≤ inner ≤ outer ≤ π/2"
+                    ));
+                }
+                LightShape::Spot {
+                    position,
+                    direction: world.transform_vector3(-DVec3::Z).normalize_or_zero(),
+                    cos_inner: crate::math::transcendental::sin_cos(inner).1,
+                    cos_outer: crate::math::transcendental::sin_cos(outer).1,
+                }
             }
             Checked::Invalid => return Err(format!("{at}.type: unknown light type")),
         };
-        if matches!(shape, LightShape::Directional { direction } if direction == DVec3::ZERO) {
+        if matches!(shape, LightShape::Directional { direction } | LightShape::Spot { direction, .. } if direction == DVec3::ZERO)
+        {
             return Err(format!("nodes[{node}]: the light's transform is singular"));
         }
         Ok(Light {
             inverse_square: !matches!(shape, LightShape::Directional { .. }),
             shape,
-            radiance: DVec3::from_array(color) * intensity,
+            radiance: DVec3::from_array(color) * photometric_to_radiometric(intensity),
         })
     }
 }
@@ -1030,6 +1338,24 @@ impl<'a> Reader<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn blender_lights_convert_to_what_cycles_shows() {
+        // Blender's exporter writes a 100 W point light as
+        // 100 / (4π) × 683 cd. Over an albedo-0.8 plane 4 m below, Cycles
+        // shows 0.1266: 0.8/π × (100/(4π)) / 4².
+        let candela = 100.0 / (4.0 * std::f64::consts::PI) * 683.0;
+        let il = photometric_to_radiometric(candela);
+        assert!((il - 7.957_747).abs() < 1e-6, "{il}");
+        let radiance = lambertian(0.8) * il / 16.0;
+        assert!((radiance - 0.126_651).abs() < 1e-6, "{radiance}");
+        // A 1 W/m² sun is 683 lux; straight down on the plane: 0.8/π.
+        let sun = lambertian(0.8) * photometric_to_radiometric(683.0);
+        assert!((sun - 0.254_648).abs() < 1e-6, "{sun}");
+        // The old reading (candela as Il, no 1/π) was 683π times brighter.
+        let old = 0.8 * candela / 16.0;
+        assert!((old / radiance - 683.0 * std::f64::consts::PI).abs() < 1e-6);
+    }
 
     fn graph(children: &[&[usize]]) -> NodeGraph {
         NodeGraph {

@@ -31,21 +31,50 @@ pub struct Model {
     pub warnings: Vec<String>,
     /// Lights the file brings (glTF), in model space.
     pub lights: Vec<Light>,
-    /// The file's camera (glTF), in model space.
-    pub camera: Option<ModelCamera>,
+    /// The file's cameras (glTF), in model space, in node order.
+    pub cameras: Vec<ModelCamera>,
 }
 
-/// A perspective camera found in a model file.
+/// How a model's camera projects.
 #[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ModelProjection {
+    /// Vertical field of view in radians.
+    Perspective {
+        /// The angle.
+        yfov: f64,
+    },
+    /// Parallel rays over a film `2·ymag` tall.
+    Orthographic {
+        /// Half the film's height.
+        ymag: f64,
+    },
+}
+
+/// A camera found in a model file.
+#[derive(Clone, Debug, PartialEq)]
 pub struct ModelCamera {
+    /// What `camera = "NAME"` and `--camera NAME` match: the node's name,
+    /// else the camera's, else `cameras[i]`.
+    pub name: String,
+    /// The camera's own name, also matched.
+    pub alias: Option<String>,
+    /// Width over height of the image it was made for, if it says.
+    pub aspect_ratio: Option<f64>,
+    /// How it projects.
+    pub projection: ModelProjection,
     /// Eye position.
     pub position: DVec3,
     /// Unit viewing direction.
     pub forward: DVec3,
     /// Unit up direction.
     pub up: DVec3,
-    /// Vertical field of view in radians.
-    pub yfov: f64,
+}
+
+impl ModelCamera {
+    /// Whether `name` names this camera (its node's name or its own).
+    pub fn is_named(&self, name: &str) -> bool {
+        self.name == name || self.alias.as_deref() == Some(name)
+    }
 }
 
 /// Why a model file could not be used.
@@ -107,7 +136,7 @@ impl Model {
             materials,
             warnings,
             lights: Vec::new(),
-            camera: None,
+            cameras: Vec::new(),
         }
     }
 }

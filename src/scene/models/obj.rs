@@ -402,6 +402,7 @@ fn material(
             Fresnel::Off
         },
         highlight: Highlight::Phong,
+        emission: Texture::Solid(DVec3::ZERO),
     })
 }
 

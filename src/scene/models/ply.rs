@@ -211,6 +211,7 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
         },
         triangles,
         materials: Vec::new(),
+        colors: Vec::new(),
     };
     Ok(Model::single(mesh, Vec::new(), warnings))
 }
