@@ -8,7 +8,7 @@
 #     as a user would) and must equal `prism render` of the same export
 #     (scripts/blender/compare.py);
 #  3. each renders in Cycles and the ratio Prism/Cycles at the centre is
-#     printed (asserted only with the switch in scripts/blender/cycles_probe.py);
+#     asserted within 5 % (ASSERT_WITHIN in scripts/blender/cycles_probe.py);
 #     with the add-on's "Lights: Scene File" it is asserted within 5 %;
 #  4. a render border, an animation, cancel and error reports
 #     (scripts/blender/engine_probe.py);

@@ -9,22 +9,20 @@ import json
 import math
 
 # ---------------------------------------------------------------------------
-# Scene-file keys that Prism does not have yet (issue 15, items 1-2, being
-# built in the library). Each switch turns on one key; nothing else in the
-# add-on changes. Until a switch is on, the key is never written, because
-# Prism refuses unknown keys.
+# Switches for what the library gained in issue 15 (items 1-2); both on.
+# Off, the key is not written (an older prism refuses unknown keys).
 # ---------------------------------------------------------------------------
 
 # `[render] exposure` (EV), from Blender's Color Management exposure. Only
 # the 8-bit output of a standalone `prism render scene.toml -o x.png` uses
 # it: the EXR the add-on reads stays linear, and Blender applies its own
 # exposure when it shows the render (so it is never applied twice).
-HAS_EXPOSURE = False
+HAS_EXPOSURE = True
 
 # The glTF loader's diffuse term is base colour / π (issue 15, item 1).
 # Only the lights this file writes ("Lights: Scene File") depend on it:
 # their intensities are matched to Cycles on a glTF material.
-GLTF_DIFFUSE_OVER_PI = False
+GLTF_DIFFUSE_OVER_PI = True
 
 
 def toml_string(s):
@@ -171,14 +169,26 @@ def light_tables(depsgraph):
         m = inst.matrix_world
         colour = toml_vector(light.color)
         if light.type in {"POINT", "SPOT"}:
-            if light.type == "SPOT":
-                notes.append(f"light '{obj.name}': Prism has no spot cone yet; a point light")
             r = light.shadow_soft_size
+            spot = light.type == "SPOT" and r == 0
+            if light.type == "SPOT" and r > 0:
+                notes.append(f"light '{obj.name}': a spot with a radius is a sphere light "
+                             "(soft shadows, no cone)")
+            kind = "spot" if spot else ("sphere" if r > 0 else "point")
             lines += [f"[lights.{name}]",
-                      f'type = "{"sphere" if r > 0 else "point"}"',
+                      f'type = "{kind}"',
                       f"position = {toml_vector(to_y_up(m.translation))}"]
             if r > 0:
                 lines.append(f"radius = {toml_number(r)}")
+            if spot:
+                # The cone as Blender's glTF exporter writes it: the outer
+                # half-angle is half the spot size, the blend eats into it.
+                outer = light.spot_size / 2.0
+                inner = outer - outer * light.spot_blend
+                axis = (m.to_3x3() @ _vec(0.0, 0.0, -1.0)).normalized()
+                lines += [f"direction = {toml_vector(to_y_up(axis))}",
+                          f"inner_angle = {toml_number(math.degrees(inner))}",
+                          f"outer_angle = {toml_number(math.degrees(outer))}"]
             lines += [f"color = {colour}",
                       f"intensity = {toml_number(light.energy / (4.0 * math.pi) * over_pi)}",
                       'falloff = "inverse_square"', ""]
