@@ -92,10 +92,26 @@ impl RenderSettings {
     /// one canonical line: `640x480 spp=4 max_depth=8 min_weight=0.001`.
     /// (Threads and regions change no pixel.)
     pub fn pixel_key(&self) -> String {
-        format!(
+        let mut key = format!(
             "{}x{} spp={} max_depth={} min_weight={}",
             self.width, self.height, self.spp, self.max_depth, self.min_weight
-        )
+        );
+        // The exposure changes the 8-bit encodings only, so parts carry it
+        // for their merge; without one, keys stay as they were.
+        if self.exposure != 0.0 {
+            key.push_str(&format!(" exposure={}", self.exposure));
+        }
+        key
+    }
+
+    /// The exposure recorded in a [`pixel_key`](Self::pixel_key), 0 when
+    /// there is none.
+    pub fn exposure_in_key(key: &str) -> f64 {
+        key.split(' ')
+            .find_map(|w| w.strip_prefix("exposure="))
+            .and_then(|v| v.parse().ok())
+            .filter(|v: &f64| v.is_finite())
+            .unwrap_or(0.0)
     }
 }
 

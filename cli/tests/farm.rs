@@ -645,3 +645,35 @@ fn a_killed_frame_sequence_resumes_without_rendering_finished_frames() {
     }
     assert!(!d.join("ck").exists(), "the checkpoint folder stays behind");
 }
+
+/// With an exposure, a PNG merged from EXR parts equals the PNG rendered
+/// whole: the parts carry the exposure and the merge applies it as the
+/// render does (to the radiance as stored, then 2^EV).
+#[test]
+fn an_exposed_png_merges_to_the_same_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene(d);
+    for ev in ["1.5", "-0.7"] {
+        let exposed = ["--exposure", ev];
+        render(d, s, &[&exposed[..], &["-o", "whole.png"]].concat());
+        for i in 0..3 {
+            let tile = format!("{i}/3");
+            let out = format!("t{i}.exr");
+            render(
+                d,
+                s,
+                &[&exposed[..], &["--tile", &tile, "-o", &out]].concat(),
+            );
+        }
+        ok(d, &["merge", "t0.exr", "t1.exr", "t2.exr", "-o", "m.png"]);
+        assert!(bytes(d, "whole.png") == bytes(d, "m.png"), "exposure {ev}");
+    }
+    // Parts of different exposures are parts of different pictures.
+    render(d, s, &["--tile", "1/3", "-o", "plain.exr"]);
+    refused(
+        d,
+        &["merge", "t0.exr", "plain.exr", "t2.exr", "-o", "out.png"],
+        "plain.exr: belongs to another render: its settings",
+    );
+}

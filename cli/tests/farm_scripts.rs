@@ -49,7 +49,15 @@ fn ok(o: Output, what: &str) -> String {
 fn prism_in(dir: &Path) -> PathBuf {
     std::fs::create_dir_all(dir).unwrap();
     let to = dir.join("prism");
-    std::fs::copy(env!("CARGO_BIN_EXE_prism"), &to).unwrap();
+    // Copied by another process: a file this process held open for
+    // writing would be inherited by the children other tests fork
+    // meanwhile, and running the copy would fail with "Text file busy".
+    let copied = Command::new("cp")
+        .arg(env!("CARGO_BIN_EXE_prism"))
+        .arg(&to)
+        .status()
+        .unwrap();
+    assert!(copied.success());
     to
 }
 

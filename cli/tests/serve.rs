@@ -454,7 +454,9 @@ fn idle_and_partial_connections_make_room_for_real_requests() {
         .map(|_| TcpStream::connect(addr).unwrap())
         .collect();
     for s in idle.iter_mut().skip(150).step_by(10) {
-        write!(s, "GET / HTTP/1.1\r\nHost: {addr}\r\n").unwrap();
+        // The server may already have closed it to make room: a failed
+        // write is that, not an error.
+        let _ = write!(s, "GET / HTTP/1.1\r\nHost: {addr}\r\n");
     }
     // A real request is still answered.
     let (status, _) = get(addr, "/", addr);
@@ -465,7 +467,7 @@ fn idle_and_partial_connections_make_room_for_real_requests() {
     drop(idle);
     // One that never finishes its header is closed (header timeout).
     let mut slow = TcpStream::connect(addr).unwrap();
-    write!(slow, "GET / HTTP/1.1\r\nHost: {addr}\r\nX-Slow: ").unwrap();
+    let _ = write!(slow, "GET / HTTP/1.1\r\nHost: {addr}\r\nX-Slow: ");
     assert!(closed(&mut slow));
     // An idle keep-alive connection is closed too.
     let mut kept = TcpStream::connect(addr).unwrap();

@@ -136,6 +136,15 @@ pub fn merge_parts_with(
     for (_, part) in &parts {
         film.paste(part.film.region(), part.film.pixels());
     }
+    // The parts' exposure, for the 8-bit encodings, as `prism render`
+    // applies it.
+    if matches!(
+        super::OutputFormat::from_path(output),
+        Ok(super::OutputFormat::Png | super::OutputFormat::Ppm)
+    ) {
+        let ev = crate::RenderSettings::exposure_in_key(&first.provenance.settings);
+        super::expose(&mut film, ev);
+    }
     write_film_unless(
         &film,
         output,

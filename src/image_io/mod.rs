@@ -125,6 +125,17 @@ pub fn to_f32(v: f64) -> f32 {
     }
 }
 
+/// Applies an exposure of `ev` stops for 8-bit output: each value as an
+/// EXR part stores it (rounded to f32), times 2^`ev`. Rounding first makes
+/// a PNG merged from EXR parts equal, byte for byte, to the one rendered
+/// whole.
+pub fn expose(film: &mut Film, ev: f64) {
+    if ev != 0.0 {
+        let k = crate::settings::exposure_scale(ev);
+        film.map(|v| f64::from(to_f32(v)) * k);
+    }
+}
+
 /// The film's region as an 8-bit or float image (not EXR, which
 /// [`exr::write`] writes with its data window).
 fn to_image(film: &Film, format: OutputFormat) -> DynamicImage {

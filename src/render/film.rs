@@ -64,10 +64,10 @@ impl Film {
         self.pixels[i] = value;
     }
 
-    /// Multiplies every pixel by `k` (an exposure).
-    pub fn scale(&mut self, k: f64) {
+    /// Applies `f` to every component of every pixel.
+    pub fn map(&mut self, f: impl Fn(f64) -> f64) {
         for p in &mut self.pixels {
-            *p *= k;
+            *p = DVec3::new(f(p.x), f(p.y), f(p.z));
         }
     }
 

@@ -481,9 +481,8 @@ impl Job<'_> {
                     OutputFormat::from_path(self.output),
                     Ok(OutputFormat::Png | OutputFormat::Ppm)
                 );
-                if eight_bit && settings.exposure != 0.0 {
-                    o.film
-                        .scale(prism::settings::exposure_scale(settings.exposure));
+                if eight_bit {
+                    prism::image_io::expose(&mut o.film, settings.exposure);
                 }
                 o
             }),

@@ -387,8 +387,8 @@ fn make(
             .ok_or("the render is not finished yet")?;
             // The scene's exposure applies to the 8-bit PNG only.
             let mut film = film;
-            if kind == Kind::Png && settings.exposure != 0.0 {
-                film.scale(prism::settings::exposure_scale(settings.exposure));
+            if kind == Kind::Png {
+                prism::image_io::expose(&mut film, settings.exposure);
             }
             let provenance = prism::image_io::Provenance::of(scene, settings);
             let ext = if kind == Kind::Png { "png" } else { "exr" };
