@@ -40,11 +40,11 @@ blend() { blender --background --python-exit-code 1 "$@" >>"$WORK/blender.log" 2
 start=$(date +%s)
 blender --version | head -1
 blend --factory-startup --python scripts/blender/make_scenes.py -- "$WORK"
-for name in probe_point probe_spot probe_sun default default_ortho default_portrait; do
+for name in probe_point probe_spot probe_sun default default_ortho default_portrait showcase; do
     dir=$WORK/$name
     mkdir -p "$dir"
     spp=1
-    case $name in default*) spp=4 ;; esac
+    case $name in default*|showcase) spp=4 ;; esac
     # Through the add-on, as `blender -b FILE -E PRISM -f 1` does.
     blend "$WORK/$name.blend" --python scripts/blender/use_addon.py \
         -E PRISM -o "$dir/blender_#" -f 1 -- "$ZIP" "$PRISM" "$dir/export" "$spp"
@@ -111,7 +111,7 @@ blend --factory-startup --python scripts/blender/compare.py -- "$ui/f12.exr" "$u
 grep "^compare:" "$WORK/blender.log" | tail -1 | sed "s/^/F12: /"
 if [ "${1:-}" = "--update-data" ]; then
     version=$(blender --version | head -1)
-    for name in probe_point probe_spot probe_sun default default_ortho default_portrait; do
+    for name in probe_point probe_spot probe_sun default default_ortho default_portrait showcase; do
         cp "$WORK/$name/export/scene.glb" "tests/data/blender/$name.glb"
     done
     cp "$WORK/default/side_by_side_scene_lights_1.png" docs/images/blender-default.png

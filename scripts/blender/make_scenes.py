@@ -6,7 +6,13 @@
   default: Blender's factory startup scene (cube, light, camera);
   default_anim: the same with the cube moving over frames 1 to 3;
   default_ortho: the same through an orthographic camera;
-  default_portrait: the same at 36x64.
+  default_portrait: the same at 36x64;
+  showcase: an 8x8 floor (a packed 16x16 checker image tiled 4 times by a
+    Mapping node, so the exporter writes KHR_texture_transform), a mirror
+    ball, a glass ball, a small emissive cube and a spot light, dark world;
+    its scene property prism_probe is a floor point the spot lights
+    directly, away from the balls and the cube (cycles_probe.py compares
+    Cycles there).
 All at 64x48 (the default scene 64x36, its 16:9).
 Run: blender --background --factory-startup --python make_scenes.py -- OUT
 """
@@ -98,4 +104,79 @@ for kind in ("POINT", "SPOT", "SUN"):
     scene.collection.objects.link(light)
     bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, f"probe_{kind.lower()}.blend"), copy=True)
     bpy.data.objects.remove(light, do_unlink=True)
+
+# The showcase (issue 15): texture transform, mirror, glass, emission, spot.
+for obj in list(bpy.data.objects):
+    if obj.type != "CAMERA":
+        bpy.data.objects.remove(obj, do_unlink=True)
+scene.cycles.max_bounces = 8  # the mirror and the glass need bounces in Cycles
+scene.cycles.samples = 32
+checker = bpy.data.images.new("checker", 16, 16, alpha=False)
+dark, light_ = 0.2, 0.8  # sRGB-encoded, as a PNG holds them
+checker.pixels.foreach_set([v for y in range(16) for x in range(16)
+                            for v in ((light_,) * 3 if (x // 8 + y // 8) % 2 == 0 else (dark,) * 3) + (1.0,)])
+checker.pack()
+floor_material = bpy.data.materials.new("checker floor")
+floor_material.use_nodes = True
+nodes, links = floor_material.node_tree.nodes, floor_material.node_tree.links
+bsdf = nodes["Principled BSDF"]
+bsdf.inputs["Roughness"].default_value = 1.0
+bsdf.inputs["Specular"].default_value = 0.0
+texture = nodes.new("ShaderNodeTexImage")
+texture.image = checker
+texture.interpolation = "Closest"
+mapping = nodes.new("ShaderNodeMapping")
+mapping.inputs["Scale"].default_value = (4.0, 4.0, 1.0)
+coordinates = nodes.new("ShaderNodeTexCoord")
+links.new(coordinates.outputs["UV"], mapping.inputs["Vector"])
+links.new(mapping.outputs["Vector"], texture.inputs["Vector"])
+links.new(texture.outputs["Color"], bsdf.inputs["Base Color"])
+bpy.ops.mesh.primitive_plane_add(size=8.0, location=(0, 0, 0))
+bpy.context.active_object.name = "floor"
+bpy.context.active_object.data.materials.append(floor_material)
+
+
+def ball(name, location, **inputs):
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.6, location=location, segments=32, ring_count=16)
+    obj = bpy.context.active_object
+    obj.name = name
+    bpy.ops.object.shade_smooth()
+    m = bpy.data.materials.new(name)
+    m.use_nodes = True
+    for key, value in inputs.items():
+        m.node_tree.nodes["Principled BSDF"].inputs[key].default_value = value
+    obj.data.materials.append(m)
+    return obj
+
+
+ball("mirror", (-1.0, 0.8, 0.6), **{"Base Color": (0.9, 0.9, 0.9, 1.0), "Metallic": 1.0, "Roughness": 0.0})
+ball("glass", (1.0, 0.8, 0.6), **{"Base Color": (1.0, 1.0, 1.0, 1.0), "Transmission": 1.0,
+                                  "IOR": 1.5, "Roughness": 0.0})
+bpy.ops.mesh.primitive_cube_add(size=0.3, location=(2.8, 2.8, 0.15))
+emitter = bpy.context.active_object
+emitter.name = "emitter"
+m = bpy.data.materials.new("emitter")
+m.use_nodes = True
+m.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+m.node_tree.nodes["Principled BSDF"].inputs["Emission"].default_value = (1.0, 0.5, 0.1, 1.0)
+m.node_tree.nodes["Principled BSDF"].inputs["Emission Strength"].default_value = 4.0
+emitter.data.materials.append(m)
+light_data = bpy.data.lights.new("spot light", "SPOT")
+light_data.energy = 300.0  # W
+light_data.shadow_soft_size = 0.0
+light_data.spot_size = math.radians(70.0)
+light_data.spot_blend = 0.15
+light = bpy.data.objects.new("spot light", light_data)
+# Straight above the probe point (below): Cycles 3.x scales a spot's
+# intensity by the cosine of the angle off its axis (Prism, like glTF,
+# does not), so only on the axis do the two agree (off it by 1/cos).
+light.location = (0.5, -1.5, 4.0)  # points down -Z
+scene.collection.objects.link(light)
+camera.location = (0.0, -7.0, 4.0)
+camera.rotation_euler = (math.radians(62.0), 0.0, 0.0)
+# A floor point in a light cell (cells are 1 unit; the light cells' centres
+# at half-odd coordinates of the same parity), under the spot, 2.5 from the
+# mirror ball's centre and 4.8 from the cube.
+scene["prism_probe"] = (0.5, -1.5, 0.0)
+bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "showcase.blend"), copy=True)
 print(f"make_scenes: wrote {sorted(os.listdir(out))}")
