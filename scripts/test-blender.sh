@@ -3,7 +3,8 @@
 # python3-numpy (the glTF exporter needs numpy; the package does not pull
 # it in) and xvfb when absent, builds prism and the add-on zip, then headless:
 #  1. scripts/blender/make_scenes.py builds the probes (a diffuse plane
-#     under a point, spot or sun light) and Blender's default scene;
+#     under a point, spot or sun light), Blender's default scene and a
+#     showcase (texture transform, mirror, glass, emission, spot);
 #  2. each renders through the add-on (`-E PRISM -f 1`, the zip installed
 #     as a user would) and must equal `prism render` of the same export
 #     (scripts/blender/compare.py);
