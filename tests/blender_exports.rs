@@ -23,7 +23,10 @@ fn centre(name: &str) -> f64 {
     };
     let c = render(&scene, &settings, &()).unwrap().film.get(4, 4);
     // A grey plane under a white light: the three channels agree.
-    assert!((c.x - c.y).abs() < 1e-9 && (c.x - c.z).abs() < 1e-9, "{name}: {c:?}");
+    assert!(
+        (c.x - c.y).abs() < 1e-9 && (c.x - c.z).abs() < 1e-9,
+        "{name}: {c:?}"
+    );
     c.x
 }
 
