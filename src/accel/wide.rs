@@ -189,7 +189,7 @@ pub fn stack_need(wide: &[WideNode]) -> usize {
     }
 }
 
-/// Closest-hit traversal over wide nodes; see `Bvh::closest`.
+/// Closest-hit traversal over wide nodes; see `Bvh::closest_leaves`.
 #[inline]
 pub fn closest(
     wide: &[WideNode],
@@ -197,7 +197,7 @@ pub fn closest(
     inv_dir: Vec3A,
     mut t_max: f64,
     stack: &mut [StackEntry],
-    mut test: impl FnMut(usize, f64) -> Option<f64>,
+    mut test: impl FnMut(usize, usize, f64) -> f64,
 ) -> f64 {
     if wide.is_empty() {
         return t_max;
@@ -243,17 +243,12 @@ pub fn closest(
                 current = e.index as usize;
                 break;
             }
-            let start = e.index as usize;
-            for position in start..start + e.count as usize {
-                if let Some(t) = test(position, t_max) {
-                    t_max = t;
-                }
-            }
+            t_max = test(e.index as usize, e.count as usize, t_max);
         }
     }
 }
 
-/// Any-hit traversal over wide nodes; see `Bvh::any`.
+/// Any-hit traversal over wide nodes; see `Bvh::any_leaves`.
 #[inline]
 pub fn any(
     wide: &[WideNode],
@@ -261,7 +256,7 @@ pub fn any(
     inv_dir: Vec3A,
     t_max: f64,
     stack: &mut [u32],
-    mut test: impl FnMut(usize) -> bool,
+    mut test: impl FnMut(usize, usize) -> bool,
 ) -> bool {
     if wide.is_empty() {
         return false;
@@ -277,8 +272,7 @@ pub fn any(
             mask &= mask - 1;
             let (child, count) = (node.child[lane], node.count[lane]);
             if count > 0 {
-                let start = child as usize;
-                if (start..start + count as usize).any(&mut test) {
+                if test(child as usize, count as usize) {
                     return true;
                 }
             } else {
