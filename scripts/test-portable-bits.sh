@@ -2,8 +2,7 @@
 # Same bits on every CPU: renders the example scenes with the normal build
 # (glam's SSE2 code for the 4-wide box tests and vector math) and with the
 # portable build (feature scalar-math: plain scalar code), and compares the
-# image bytes, EXR and PNG; and the normal build with the f32 triangle
-# pre-filter switched off (PRISM_TRIFILTER=off) against it on. Also checks that no build asks for
+# image bytes, EXR and PNG. Also checks that no build asks for
 # target-cpu=native or CPU features beyond the baseline.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -23,8 +22,6 @@ for scene in whitted soft-shadows star nested-glass cornell models gltf rolling;
         target/release/prism "${args[@]}" -o "$WORK/simd.$ext"
         target/portable/release/prism "${args[@]}" -o "$WORK/portable.$ext"
         cmp "$WORK/simd.$ext" "$WORK/portable.$ext" || fail "$scene.$ext: the SIMD and portable builds differ"
-        PRISM_TRIFILTER=off target/release/prism "${args[@]}" -o "$WORK/nofilter.$ext"
-        cmp "$WORK/simd.$ext" "$WORK/nofilter.$ext" || fail "$scene.$ext: the triangle pre-filter changes the image"
     done
 done
-echo "ok: SIMD and portable builds, triangle pre-filter on and off, give the same bytes on 8 scenes (EXR and PNG)"
+echo "ok: SIMD and portable builds give the same bytes on 8 scenes (EXR and PNG)"

@@ -200,27 +200,7 @@ impl Bvh {
         &self,
         ray: &BoxRay,
         t_max: f64,
-        mut test: impl FnMut(usize, f64) -> Option<f64>,
-    ) -> f64 {
-        self.closest_leaves(ray, t_max, |start, count, mut t_max| {
-            for position in start..start + count {
-                if let Some(t) = test(position, t_max) {
-                    t_max = t;
-                }
-            }
-            t_max
-        })
-    }
-
-    /// [`closest`](Self::closest) a leaf at a time: `test(start, count,
-    /// t_max)` is given the leaf's item positions `start..start + count`
-    /// and returns the new `t_max` (the old one when nothing closer is hit).
-    #[inline]
-    pub fn closest_leaves(
-        &self,
-        ray: &BoxRay,
-        t_max: f64,
-        test: impl FnMut(usize, usize, f64) -> f64,
+        test: impl FnMut(usize, f64) -> Option<f64>,
     ) -> f64 {
         if self.stack_need <= wide::STACK {
             let mut stack = [wide::StackEntry::default(); wide::STACK];
@@ -247,21 +227,7 @@ impl Bvh {
     /// Any-hit traversal: true as soon as `test(position)` is true for an
     /// item in a leaf the ray meets within `t_max`.
     #[inline]
-    pub fn any(&self, ray: &BoxRay, t_max: f64, mut test: impl FnMut(usize) -> bool) -> bool {
-        self.any_leaves(ray, t_max, |start, count| {
-            (start..start + count).any(&mut test)
-        })
-    }
-
-    /// [`any`](Self::any) a leaf at a time: `test(start, count)` is given
-    /// the leaf's item positions `start..start + count`.
-    #[inline]
-    pub fn any_leaves(
-        &self,
-        ray: &BoxRay,
-        t_max: f64,
-        test: impl FnMut(usize, usize) -> bool,
-    ) -> bool {
+    pub fn any(&self, ray: &BoxRay, t_max: f64, test: impl FnMut(usize) -> bool) -> bool {
         if self.stack_need <= wide::STACK {
             let mut stack = [0u32; wide::STACK];
             wide::any(&self.wide, ray.origin, ray.inv_dir, t_max, &mut stack, test)

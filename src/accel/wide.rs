@@ -189,7 +189,7 @@ pub fn stack_need(wide: &[WideNode]) -> usize {
     }
 }
 
-/// Closest-hit traversal over wide nodes; see `Bvh::closest_leaves`.
+/// Closest-hit traversal over wide nodes; see `Bvh::closest`.
 #[inline]
 pub fn closest(
     wide: &[WideNode],
@@ -197,7 +197,7 @@ pub fn closest(
     inv_dir: Vec3A,
     mut t_max: f64,
     stack: &mut [StackEntry],
-    mut test: impl FnMut(usize, usize, f64) -> f64,
+    mut test: impl FnMut(usize, f64) -> Option<f64>,
 ) -> f64 {
     if wide.is_empty() {
         return t_max;
@@ -243,12 +243,17 @@ pub fn closest(
                 current = e.index as usize;
                 break;
             }
-            t_max = test(e.index as usize, e.count as usize, t_max);
+            let start = e.index as usize;
+            for position in start..start + e.count as usize {
+                if let Some(t) = test(position, t_max) {
+                    t_max = t;
+                }
+            }
         }
     }
 }
 
-/// Any-hit traversal over wide nodes; see `Bvh::any_leaves`.
+/// Any-hit traversal over wide nodes; see `Bvh::any`.
 #[inline]
 pub fn any(
     wide: &[WideNode],
@@ -256,7 +261,7 @@ pub fn any(
     inv_dir: Vec3A,
     t_max: f64,
     stack: &mut [u32],
-    mut test: impl FnMut(usize, usize) -> bool,
+    mut test: impl FnMut(usize) -> bool,
 ) -> bool {
     if wide.is_empty() {
         return false;
@@ -272,7 +277,8 @@ pub fn any(
             mask &= mask - 1;
             let (child, count) = (node.child[lane], node.count[lane]);
             if count > 0 {
-                if test(child as usize, count as usize) {
+                let start = child as usize;
+                if (start..start + count as usize).any(&mut test) {
                     return true;
                 }
             } else {

@@ -7,7 +7,6 @@ use thiserror::Error;
 
 use super::Aabb;
 use super::triangle::{WatertightRay, triangle_hit};
-use super::trifilter::{FilterRay, TriangleFilter};
 use crate::accel::bvh::{BoxRay, Bvh};
 
 /// What a loader hands over to build a mesh.
@@ -75,9 +74,6 @@ pub struct Mesh {
     /// Material slot per triangle (BVH order; empty: slot 0).
     materials: Vec<u32>,
     bvh: Bvh,
-    /// The triangles in f32 for the conservative pre-filter (none:
-    /// `PRISM_TRIFILTER=off`, every triangle goes to the exact test).
-    filter: Option<TriangleFilter>,
 }
 
 /// A ray-mesh hit with the surface at it.
@@ -158,28 +154,14 @@ impl Mesh {
                 .map(|&i| materials.get(i as usize).copied().unwrap_or(0))
                 .collect()
         };
-        let mut mesh = Mesh {
+        Ok(Mesh {
             positions,
             normals,
             uvs,
             triangles: ordered,
             materials,
             bvh,
-            filter: None,
-        };
-        if std::env::var_os("PRISM_TRIFILTER").is_none_or(|v| v != "off") {
-            mesh = mesh.with_filter(true);
-        }
-        Ok(mesh)
-    }
-
-    /// The mesh with the f32 triangle pre-filter on or off. The hits are
-    /// the same either way (the filter only rejects triangles the exact
-    /// test misses); off is what `PRISM_TRIFILTER=off` selects at load.
-    pub fn with_filter(mut self, on: bool) -> Mesh {
-        self.filter =
-            on.then(|| TriangleFilter::new((0..self.triangles.len()).map(|i| self.corners(i))));
-        self
+        })
     }
 
     /// Number of triangles.
@@ -205,38 +187,6 @@ impl Mesh {
             + self.triangles.len() * 12
             + self.materials.len() * 4
             + self.bvh.memory_bytes()
-            + self.filter.as_ref().map_or(0, TriangleFilter::memory_bytes)
-    }
-
-    /// Calls `test(position)` in order for each triangle of the leaf
-    /// `start..start + count` that the pre-filter cannot rule out (all of
-    /// them without the filter); stops at the first true.
-    #[inline]
-    fn leaf_candidates(
-        &self,
-        ray: &FilterRay,
-        start: usize,
-        count: usize,
-        mut test: impl FnMut(usize) -> bool,
-    ) -> bool {
-        let Some(filter) = &self.filter else {
-            return (start..start + count).any(test);
-        };
-        let end = start + count;
-        let mut chunk = start;
-        while chunk < end {
-            let n = (end - chunk).min(4);
-            let mut mask = filter.survivors(ray, chunk, n);
-            while mask != 0 {
-                let position = chunk + mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                if test(position) {
-                    return true;
-                }
-            }
-            chunk += n;
-        }
-        false
     }
 
     #[inline]
@@ -259,23 +209,14 @@ impl Mesh {
         t_max: f64,
     ) -> Option<MeshHit> {
         let ray = WatertightRay::new(origin, direction);
-        let filter_ray = FilterRay::new(&ray);
         let mut best = None;
-        self.bvh.closest_leaves(
-            &BoxRay::new(origin, direction),
-            t_max,
-            |start, count, mut t_max| {
-                self.leaf_candidates(&filter_ray, start, count, |position| {
-                    let [a, b, c] = self.corners(position);
-                    if let Some(h) = triangle_hit(&ray, a, b, c, t_min, t_max) {
-                        best = Some((position, h));
-                        t_max = h.t;
-                    }
-                    false
-                });
-                t_max
-            },
-        );
+        self.bvh
+            .closest(&BoxRay::new(origin, direction), t_max, |position, t_max| {
+                let [a, b, c] = self.corners(position);
+                let h = triangle_hit(&ray, a, b, c, t_min, t_max)?;
+                best = Some((position, h));
+                Some(h.t)
+            });
         let (triangle, h) = best?;
         Some(self.surface(triangle, h.barycentric, h.t))
     }
@@ -283,13 +224,10 @@ impl Mesh {
     /// Whether any triangle is hit with t in (t_min, t_max).
     pub fn any_hit(&self, origin: DVec3, direction: DVec3, t_min: f64, t_max: f64) -> bool {
         let ray = WatertightRay::new(origin, direction);
-        let filter_ray = FilterRay::new(&ray);
         self.bvh
-            .any_leaves(&BoxRay::new(origin, direction), t_max, |start, count| {
-                self.leaf_candidates(&filter_ray, start, count, |position| {
-                    let [a, b, c] = self.corners(position);
-                    triangle_hit(&ray, a, b, c, t_min, t_max).is_some()
-                })
+            .any(&BoxRay::new(origin, direction), t_max, |position| {
+                let [a, b, c] = self.corners(position);
+                triangle_hit(&ray, a, b, c, t_min, t_max).is_some()
             })
     }
 
@@ -389,67 +327,6 @@ mod tests {
         assert!((h.shading_normal - expected).length() < 1e-12);
         assert_eq!(h.normal, DVec3::Z);
         assert_eq!(h.material, 3);
-    }
-
-    /// The pre-filter changes no hit: random rays, many of them aimed
-    /// exactly at edges and vertices, give bit-identical hits with the
-    /// filter and without, closest and any.
-    #[test]
-    fn filtered_and_unfiltered_hits_are_identical() {
-        use crate::math::rng::PixelRng;
-        let mut rng = PixelRng::new(29, 0, 0);
-        let mut r = || rng.uniform() * 2.0 - 1.0;
-        // A bumpy grid of 2·24² triangles, so leaves are full and shared
-        // edges and vertices are everywhere.
-        let n = 25;
-        let mut data = MeshData::default();
-        for i in 0..n {
-            for j in 0..n {
-                let (x, z) = (i as f64 / 8.0 - 1.5, j as f64 / 8.0 - 1.5);
-                let bump = 0.1 * (x * x - z) * (z + 0.5 * x);
-                data.positions.push(DVec3::new(x, bump + 0.3 * r(), z));
-            }
-        }
-        for i in 0..n - 1 {
-            for j in 0..n - 1 {
-                let a = (i * n + j) as u32;
-                let n = n as u32;
-                data.triangles.push([a, a + n, a + 1]);
-                data.triangles.push([a + 1, a + n, a + n + 1]);
-            }
-        }
-        let on = Mesh::new(data.clone()).unwrap().with_filter(true);
-        let off = Mesh::new(data).unwrap().with_filter(false);
-        let (mut hits, mut blocked) = (0, 0);
-        for k in 0..100_000 {
-            let tri = on.corners(k % on.triangle_count());
-            let (s, t) = (r().abs(), r().abs());
-            let target = match k % 4 {
-                0 => tri[k % 3],
-                1 => tri[k % 3] + s * (tri[(k + 1) % 3] - tri[k % 3]),
-                2 => tri[0] + 0.5 * s * (tri[1] - tri[0]) + 0.5 * t * (tri[2] - tri[0]),
-                _ => DVec3::new(r(), r(), r()) * 2.0,
-            };
-            let origin = target + DVec3::new(r(), r() * 3.0, r()) * [0.01, 1.0, 100.0][k % 3];
-            let d = target - origin;
-            let a = on.intersect(origin, d, 0.0, f64::INFINITY);
-            let b = off.intersect(origin, d, 0.0, f64::INFINITY);
-            assert_eq!(
-                a.map(|h| h.t.to_bits()),
-                b.map(|h| h.t.to_bits()),
-                "ray {k}"
-            );
-            assert_eq!(a, b, "ray {k}");
-            hits += usize::from(a.is_some());
-            let limit = 1.0 + 0.2 * r();
-            let any = on.any_hit(origin, d, 1e-9, limit);
-            assert_eq!(any, off.any_hit(origin, d, 1e-9, limit), "ray {k}");
-            blocked += usize::from(any);
-        }
-        assert!(
-            hits > 50_000 && blocked > 20_000,
-            "{hits} hits, {blocked} blocked"
-        );
     }
 
     #[test]

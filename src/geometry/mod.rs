@@ -9,7 +9,6 @@ pub mod plane;
 pub mod polygon;
 pub mod sphere;
 pub mod triangle;
-pub mod trifilter;
 
 pub use aabb::Aabb;
 pub use hit::{Hit, ShapeHit};

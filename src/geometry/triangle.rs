@@ -54,14 +54,6 @@ impl WatertightRay {
     }
 }
 
-impl WatertightRay {
-    /// Origin, axes [kx, ky, kz] and shear constants Sx, Sy, for the f32
-    /// pre-filter that must mirror this test.
-    pub(crate) fn parts(&self) -> (DVec3, [usize; 3], f64, f64) {
-        (self.origin, [self.kx, self.ky, self.kz], self.sx, self.sy)
-    }
-}
-
 /// A ray-triangle hit: parameter and barycentric coordinates.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriangleHit {
