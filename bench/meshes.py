@@ -14,6 +14,8 @@ candidate replacement for Prism's own BVH.
 
 Set-up: none; the script makes bench/.venv (embreex, numpy) on first run.
 Usage: python3 bench/meshes.py [--incoherent N]
+       MESHBENCH=path/to/meshbench python3 bench/meshes.py  (time that binary,
+       e.g. a saved build of an earlier commit, instead of building this tree's)
 """
 
 import argparse
@@ -100,8 +102,10 @@ def main():
     parser.add_argument("--incoherent", type=int, default=1 << 20)
     args = parser.parse_args()
     os.makedirs(DATA, exist_ok=True)
-    subprocess.run(["cargo", "build", "--release", "--quiet", "--example", "meshbench"], cwd=ROOT, check=True)
-    exe = os.path.join(ROOT, "target", "release", "examples", "meshbench")
+    exe = os.environ.get("MESHBENCH")
+    if not exe:
+        subprocess.run(["cargo", "build", "--release", "--quiet", "--example", "meshbench"], cwd=ROOT, check=True)
+        exe = os.path.join(ROOT, "target", "release", "examples", "meshbench")
     rows = []
     for name, path in [("bunny", bunny()), ("terrain 1M", terrain())]:
         with tempfile.TemporaryDirectory() as out:
