@@ -360,24 +360,26 @@ pub fn shell_word(s: &str) -> String {
     }
 }
 
-/// The folders and paths a job script names, checked for `backend`.
+/// The paths a job script names, as text checked by [`carriable`] for
+/// the backend (valid UTF-8, no control characters).
 struct Paths {
     outdir: PathBuf,
-    scene: PathBuf,
-    prism: PathBuf,
+    outdir_text: String,
+    scene: String,
+    prism: String,
 }
 
 impl Paths {
     fn outdir(&self) -> &str {
-        self.outdir.to_str().unwrap_or_default()
+        &self.outdir_text
     }
 
     fn scene(&self) -> &str {
-        self.scene.to_str().unwrap_or_default()
+        &self.scene
     }
 
     fn prism(&self) -> &str {
-        self.prism.to_str().unwrap_or_default()
+        &self.prism
     }
 }
 
@@ -394,11 +396,11 @@ fn plan_in(args: &FarmArgs, backend: &str) -> Result<(Plan, Paths), Failure> {
         .scene
         .canonicalize()
         .map_err(|e| bad(format!("{}: {e}", args.scene.display())))?;
-    carriable(&scene, "the scene", backend)?;
     let prism = std::env::current_exe()
         .and_then(|p| p.canonicalize())
         .map_err(|e| Failure::Failed(format!("cannot find the prism executable: {e}")))?;
-    carriable(&prism, "the prism executable", backend)?;
+    let prism = carriable(&prism, "the prism executable", backend)?.to_string();
+    let scene_text = carriable(&scene, "the scene", backend)?.to_string();
     let plan = Plan {
         scene,
         tiles: args.tiles,
@@ -417,7 +419,7 @@ fn plan_in(args: &FarmArgs, backend: &str) -> Result<(Plan, Paths), Failure> {
     let outdir = outdir
         .canonicalize()
         .map_err(|e| Failure::Failed(format!("{}: {e}", outdir.display())))?;
-    carriable(&outdir, "the output folder", backend)?;
+    let outdir_text = carriable(&outdir, "the output folder", backend)?.to_string();
     prism::image_io::check_writable(&outdir.join(plan.frame_file(plan.first_frame)))
         .map_err(|e| bad(e.to_string()))?;
     let path = outdir.join(PLAN);
@@ -442,7 +444,8 @@ fn plan_in(args: &FarmArgs, backend: &str) -> Result<(Plan, Paths), Failure> {
         plan.clone(),
         Paths {
             outdir,
-            scene: plan.scene.clone(),
+            outdir_text,
+            scene: scene_text,
             prism,
         },
     ))

@@ -186,11 +186,6 @@ fn directives(args: &SlurmArgs, name: &str) -> String {
     s
 }
 
-/// Single quotes for bash, whatever the text holds.
-fn quote(s: &str) -> String {
-    format!("'{}'", s.replace('\'', r"'\''"))
-}
-
 fn render_script(plan: &Plan, paths: &Paths, args: &SlurmArgs) -> String {
     let mut s = directives(args, "prism-render");
     let last = plan.task_count() - 1;
@@ -211,9 +206,9 @@ fn render_script(plan: &Plan, paths: &Paths, args: &SlurmArgs) -> String {
          echo \"prism farm: task $k frame $frame tile $tile/$TILES on $(hostname)\"\n\
          exec \"$PRISM\" render \"$SCENE\" --frame \"$frame\" --tile \"$tile/$TILES\" -o \"$part\" \\\n\
          \x20   ${{SLURM_CPUS_PER_TASK:+--threads \"$SLURM_CPUS_PER_TASK\"}}\n",
-        prism = quote(paths.prism()),
-        scene = quote(paths.scene()),
-        out = quote(paths.outdir()),
+        prism = shell_word(paths.prism()),
+        scene = shell_word(paths.scene()),
+        out = shell_word(paths.outdir()),
         tiles = plan.tiles,
         first = plan.first_frame,
     );
@@ -230,8 +225,8 @@ fn merge_script(paths: &Paths, args: &SlurmArgs) -> String {
          set -euo pipefail\n\
          PRISM={prism}\nOUT={out}\n\
          exec \"$PRISM\" farm merge \"$OUT\"\n",
-        prism = quote(paths.prism()),
-        out = quote(paths.outdir()),
+        prism = shell_word(paths.prism()),
+        out = shell_word(paths.outdir()),
     );
     s
 }
