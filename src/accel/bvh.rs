@@ -3,8 +3,10 @@
 //! early-exit any-hit traversal. Generic over what the leaves hold: the
 //! caller supplies the leaf test.
 
-use glam::{DVec3, Vec3A};
+use arrayvec::ArrayVec;
+use glam::DVec3;
 
+use super::simd::{self, Kernel, NodeRay};
 use super::wide::{self, WideNode};
 use crate::geometry::Aabb;
 
@@ -81,7 +83,7 @@ impl BvhNode {
 /// A BVH over items numbered 0..n.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Bvh {
-    /// The binary tree as built, collapsed to 4-wide nodes.
+    /// The binary tree as built, collapsed to 8-wide nodes.
     wide: Vec<WideNode>,
     /// Traversal stack entries the wide tree can need.
     stack_need: usize,
@@ -89,35 +91,6 @@ pub struct Bvh {
     bounds: Aabb,
     /// Item numbers in leaf order.
     order: Vec<u32>,
-}
-
-/// A ray prepared for box tests (in f32, four lanes at a time).
-#[derive(Clone, Copy, Debug)]
-pub struct BoxRay {
-    origin: Vec3A,
-    inv_dir: Vec3A,
-}
-
-impl BoxRay {
-    /// Prepares `origin + t·direction` for slab tests.
-    #[inline]
-    pub fn new(origin: DVec3, direction: DVec3) -> Self {
-        // A zero component would give 0·∞ = NaN on a slab through the
-        // origin; a huge finite value of the same sign gives the right
-        // answer (0 at the slab, ±∞ beyond it) in f32.
-        let inv = |d: f64| {
-            let i = (1.0 / d) as f32;
-            if i.is_finite() {
-                i
-            } else {
-                1e30f32.copysign(d as f32)
-            }
-        };
-        BoxRay {
-            origin: origin.as_vec3().into(),
-            inv_dir: Vec3A::new(inv(direction.x), inv(direction.y), inv(direction.z)),
-        }
-    }
 }
 
 /// One item while the tree is built: 56 bytes (the centroid is recomputed
@@ -154,7 +127,7 @@ impl Bvh {
         let bounds = items.iter().fold(Aabb::EMPTY, |b, i| b.union(&i.bounds));
         let nodes = build_node(&mut items, 0);
         // Each transient goes as soon as it is used up: the items before
-        // the 4-wide copy is made, the binary nodes after.
+        // the 8-wide copy is made, the binary nodes after.
         let order = items.iter().map(|i| i.index).collect();
         drop(items);
         let wide = wide::collapse(&nodes);
@@ -172,7 +145,7 @@ impl Bvh {
         &self.order
     }
 
-    /// Number of (4-wide) nodes.
+    /// Number of (8-wide) nodes.
     pub fn node_count(&self) -> usize {
         self.wide.len()
     }
@@ -190,24 +163,39 @@ impl Bvh {
     /// Closest-hit traversal: visits leaves front to back and calls
     /// `test(position, t_max)` for every item position in them (an index
     /// into [`order`](Self::order)); `test` returns the distance of a
-    /// closer hit, which then shrinks `t_max`. Returns the final `t_max`.
+    /// hit at or before `t_max` that it keeps, which then becomes `t_max`.
+    /// Returns the final `t_max`.
     ///
-    /// Runs on the 4-wide form: one SIMD test decides a node's four
+    /// Runs on the 8-wide form: one SIMD test decides a node's eight
     /// children; those hit are taken nearest first, and any whose entry lies
-    /// beyond a closer hit found meanwhile is dropped untested.
+    /// beyond a closer hit found meanwhile is dropped untested. Every box
+    /// that may hold a hit at or before `t_max` is visited, so `test` sees
+    /// ties too.
     #[inline]
     pub fn closest(
         &self,
-        ray: &BoxRay,
+        ray: &NodeRay,
+        t_max: f64,
+        test: impl FnMut(usize, f64) -> Option<f64>,
+    ) -> f64 {
+        self.closest_on(simd::kernel(), ray, t_max, test)
+    }
+
+    /// [`closest`](Self::closest) on a given kernel.
+    #[inline]
+    pub(crate) fn closest_on(
+        &self,
+        kernel: Kernel,
+        ray: &NodeRay,
         t_max: f64,
         test: impl FnMut(usize, f64) -> Option<f64>,
     ) -> f64 {
         if self.stack_need <= wide::STACK {
-            let mut stack = [wide::StackEntry::default(); wide::STACK];
-            wide::closest(&self.wide, ray.origin, ray.inv_dir, t_max, &mut stack, test)
+            let mut stack = ArrayVec::<_, { wide::STACK }>::new();
+            kernel.closest(&self.wide, ray, t_max, &mut stack, test)
         } else {
-            let mut stack = vec![wide::StackEntry::default(); self.stack_need];
-            wide::closest(&self.wide, ray.origin, ray.inv_dir, t_max, &mut stack, test)
+            let mut stack = Vec::with_capacity(self.stack_need);
+            kernel.closest(&self.wide, ray, t_max, &mut stack, test)
         }
     }
 
@@ -216,10 +204,10 @@ impl Bvh {
     /// soon as `visit` does.
     pub fn visit(&self, keep: impl Fn(&Aabb) -> bool, visit: impl FnMut(usize) -> bool) -> bool {
         if self.stack_need <= wide::STACK {
-            let mut stack = [0u32; wide::STACK];
+            let mut stack = ArrayVec::<_, { wide::STACK }>::new();
             wide::visit(&self.wide, &mut stack, keep, visit)
         } else {
-            let mut stack = vec![0u32; self.stack_need];
+            let mut stack = Vec::with_capacity(self.stack_need);
             wide::visit(&self.wide, &mut stack, keep, visit)
         }
     }
@@ -227,13 +215,25 @@ impl Bvh {
     /// Any-hit traversal: true as soon as `test(position)` is true for an
     /// item in a leaf the ray meets within `t_max`.
     #[inline]
-    pub fn any(&self, ray: &BoxRay, t_max: f64, test: impl FnMut(usize) -> bool) -> bool {
+    pub fn any(&self, ray: &NodeRay, t_max: f64, test: impl FnMut(usize) -> bool) -> bool {
+        self.any_on(simd::kernel(), ray, t_max, test)
+    }
+
+    /// [`any`](Self::any) on a given kernel.
+    #[inline]
+    pub(crate) fn any_on(
+        &self,
+        kernel: Kernel,
+        ray: &NodeRay,
+        t_max: f64,
+        test: impl FnMut(usize) -> bool,
+    ) -> bool {
         if self.stack_need <= wide::STACK {
-            let mut stack = [0u32; wide::STACK];
-            wide::any(&self.wide, ray.origin, ray.inv_dir, t_max, &mut stack, test)
+            let mut stack = ArrayVec::<_, { wide::STACK }>::new();
+            kernel.any(&self.wide, ray, t_max, &mut stack, test)
         } else {
-            let mut stack = vec![0u32; self.stack_need];
-            wide::any(&self.wide, ray.origin, ray.inv_dir, t_max, &mut stack, test)
+            let mut stack = Vec::with_capacity(self.stack_need);
+            kernel.any(&self.wide, ray, t_max, &mut stack, test)
         }
     }
 }
@@ -455,6 +455,16 @@ mod tests {
         }
     }
 
+    /// Every kernel this CPU runs.
+    fn kernels() -> Vec<Kernel> {
+        let all: Vec<Kernel> = simd::SimdPath::ALL
+            .iter()
+            .filter_map(|p| p.kernel())
+            .collect();
+        assert!(all.len() >= 2, "at least the four-lane and scalar paths");
+        all
+    }
+
     #[test]
     fn traversals_match_brute_force() {
         let boxes = random_boxes(3000, 99);
@@ -470,27 +480,29 @@ mod tests {
             if rng.uniform() < 0.2 {
                 d.y = 0.0; // axis-parallel rays exercise the zero-component path
             }
-            let ray = BoxRay::new(o, d);
+            let ray = NodeRay::new(o, d);
             let expected = boxes
                 .iter()
                 .filter_map(|b| box_entry(b, o, d))
                 .fold(f64::INFINITY, f64::min);
-            let found = bvh.closest(&ray, f64::INFINITY, |p, t_max| {
-                box_entry(&boxes[bvh.order()[p] as usize], o, d).filter(|&t| t < t_max)
-            });
-            assert_eq!(found, expected);
-            // Any-hit within a segment: nothing before the nearest entry,
-            // something just past it.
-            let entered_before = |limit: f64| {
-                bvh.any(&ray, limit, |p| {
-                    box_entry(&boxes[bvh.order()[p] as usize], o, d).is_some_and(|t| t < limit)
-                })
-            };
-            if expected.is_finite() {
-                assert!(!entered_before(expected * 0.999));
-                assert!(entered_before(expected * 1.001 + 1e-9));
-            } else {
-                assert!(!entered_before(f64::INFINITY));
+            for kernel in kernels() {
+                let found = bvh.closest_on(kernel, &ray, f64::INFINITY, |p, t_max| {
+                    box_entry(&boxes[bvh.order()[p] as usize], o, d).filter(|&t| t < t_max)
+                });
+                assert_eq!(found, expected, "{kernel:?}");
+                // Any-hit within a segment: nothing before the nearest
+                // entry, something just past it.
+                let entered_before = |limit: f64| {
+                    bvh.any_on(kernel, &ray, limit, |p| {
+                        box_entry(&boxes[bvh.order()[p] as usize], o, d).is_some_and(|t| t < limit)
+                    })
+                };
+                if expected.is_finite() {
+                    assert!(!entered_before(expected * 0.999));
+                    assert!(entered_before(expected * 1.001 + 1e-9));
+                } else {
+                    assert!(!entered_before(f64::INFINITY));
+                }
             }
         }
     }
@@ -509,11 +521,11 @@ mod tests {
             .collect();
         let bvh = Bvh::build(boxes.iter().copied());
         assert!(
-            bvh.stack_need <= 3 * (MEDIAN_DEPTH + 14) + 4,
+            bvh.stack_need <= (wide::WIDTH - 1) * (MEDIAN_DEPTH + 14) + wide::WIDTH,
             "stack need {}",
             bvh.stack_need
         );
-        let ray = BoxRay::new(DVec3::new(0.0, 0.5, 0.5), DVec3::X);
+        let ray = NodeRay::new(DVec3::new(0.0, 0.5, 0.5), DVec3::X);
         let t = bvh.closest(&ray, f64::INFINITY, |p, t_max| {
             let b = boxes[bvh.order()[p] as usize];
             (b.min.x < t_max).then_some(b.min.x)

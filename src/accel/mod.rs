@@ -8,14 +8,16 @@
 pub mod bvh;
 mod primitive;
 mod shadow;
+pub(crate) mod simd;
 mod wide;
 
 pub use primitive::{Primitive, Shape};
 pub use shadow::{Blocker, ShadowCandidates};
+pub use simd::{NodeRay, SimdPath, simd_path};
 
-use bvh::{BoxRay, Bvh};
+use bvh::Bvh;
 
-use crate::geometry::{Aabb, Hit};
+use crate::geometry::{Aabb, Hit, ShapeHit};
 use crate::math::Ray;
 
 /// All primitives of a scene, queried as one.
@@ -64,28 +66,41 @@ impl Aggregate {
         self.bvh.bounds()
     }
 
-    /// The nearest hit with t in (0, t_max).
+    /// The nearest hit with t in (0, t_max); of hits at the same t, the
+    /// one of the lowest primitive index, so the answer does not depend on
+    /// the order the tree visits them in.
     pub fn closest_hit(&self, ray: &Ray, t_max: f64) -> Option<Hit> {
-        let mut found = None;
-        let mut closest = t_max;
-        for &i in &self.unbounded {
-            if let Some(h) = self.primitives[i as usize]
-                .shape
-                .intersect(ray, 0.0, closest)
-            {
-                closest = h.t;
-                found = Some((i, h));
-            }
-        }
-        let box_ray = BoxRay::new(ray.origin, ray.direction);
-        self.bvh.closest(&box_ray, closest, |position, t_max| {
-            let i = self.leaf_primitives[position];
+        let mut found: Option<(u32, ShapeHit)> = None;
+        // Once a hit is held, a later one at the same t is looked for too.
+        let mut consider = |i: u32, t_max: f64| {
+            let limit = if found.is_some() {
+                t_max.next_up()
+            } else {
+                t_max
+            };
             let h = self.primitives[i as usize]
                 .shape
-                .intersect(ray, 0.0, t_max)?;
+                .intersect(ray, 0.0, limit)?;
+            if found
+                .as_ref()
+                .is_some_and(|(j, held)| h.t == held.t && *j < i)
+            {
+                return None;
+            }
             found = Some((i, h));
             Some(h.t)
-        });
+        };
+        let mut closest = t_max;
+        for &i in &self.unbounded {
+            if let Some(t) = consider(i, closest) {
+                closest = t;
+            }
+        }
+        self.bvh.closest(
+            &NodeRay::new(ray.origin, ray.direction),
+            closest,
+            |position, t_max| consider(self.leaf_primitives[position], t_max),
+        );
         found.map(|(primitive, h)| {
             let p = &self.primitives[primitive as usize];
             let point = ray.at(h.t);
@@ -110,7 +125,7 @@ impl Aggregate {
         self.unbounded.iter().any(|&i| hits(i))
             || self
                 .bvh
-                .any(&BoxRay::new(ray.origin, ray.direction), t_max, |p| {
+                .any(&NodeRay::new(ray.origin, ray.direction), t_max, |p| {
                     hits(self.leaf_primitives[p])
                 })
     }
@@ -158,5 +173,40 @@ mod tests {
         assert!(!scene().any_hit(&ray, 2.9));
         assert!(scene().any_hit(&ray, 3.1));
         assert!(scene().closest_hit(&ray, 2.9).is_none());
+    }
+
+    #[test]
+    fn a_tie_goes_to_the_lowest_primitive_index() {
+        // Two spheres touching at the point a ray meets first (radius 1 and
+        // 2, tangent inside at z = -3), among others: the same t exactly, so
+        // the lower index wins however the tree orders them.
+        let sphere = |x: f64, radius: f64, material: u32| Primitive {
+            shape: Shape::Sphere(Sphere {
+                center: DVec3::new(x, 0.0, -3.0 - radius),
+                radius,
+            }),
+            material,
+        };
+        for (twin, first) in [0usize, 7, 19]
+            .into_iter()
+            .flat_map(|t| [(t, false), (t, true)])
+        {
+            let mut primitives: Vec<Primitive> =
+                (0..20).map(|i| sphere(3.0 * i as f64, 1.0, 0)).collect();
+            primitives.insert(
+                twin + usize::from(!first),
+                sphere(3.0 * twin as f64, 2.0, 1),
+            );
+            let scene = Aggregate::new(primitives);
+            let ray = Ray::new(DVec3::new(3.0 * twin as f64, 0.0, 0.0), -DVec3::Z);
+            let h = scene.closest_hit(&ray, f64::INFINITY).unwrap();
+            assert_eq!(h.t, 3.0);
+            let material = u32::from(first);
+            assert_eq!(
+                (h.primitive, h.material),
+                (twin as u32, material),
+                "{twin} {first}"
+            );
+        }
     }
 }

@@ -1,83 +1,68 @@
-//! The binary BVH collapsed into a 4-wide one: each node holds the boxes of
-//! up to four children in structure-of-arrays form, so one SIMD slab test
-//! (four f32 lanes) decides all four, and the tree is about half as deep
-//! as the binary one it comes from.
+//! The binary BVH collapsed into an 8-wide one: each node holds the boxes of
+//! up to eight children in structure-of-arrays form, so one SIMD slab test
+//! decides all eight (one AVX2 instruction per step, or two SSE2 ones, or a
+//! scalar loop: see `simd`), and the tree is about a third as deep as the
+//! binary one it comes from.
+//!
+//! The traversals here are generic over that node test and inlined into
+//! each instruction set's entry point, so the whole loop is compiled for it.
 
-use glam::{Vec3A, Vec4};
+use std::ops::DerefMut;
+
+use arrayvec::ArrayVec;
 
 use super::bvh::BvhNode;
+use super::simd::{Lanes, NodeRay};
 
 /// Child slots per node.
-pub const WIDTH: usize = 4;
+pub const WIDTH: usize = 8;
 /// Marks an empty slot.
 const EMPTY: u32 = u32::MAX;
 
-/// One 4-wide node: 128 bytes, two cache lines.
+/// The planes of a node's boxes, in the order `planes` stores them.
+pub const MIN_X: usize = 0;
+/// Rows 3–5 hold the maxima (see [`MIN_X`]).
+pub const MAX_X: usize = 3;
+
+/// One 8-wide node: 256 bytes, four cache lines.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(64))]
 pub struct WideNode {
-    min_x: [f32; WIDTH],
-    min_y: [f32; WIDTH],
-    min_z: [f32; WIDTH],
-    max_x: [f32; WIDTH],
-    max_y: [f32; WIDTH],
-    max_z: [f32; WIDTH],
+    /// min x, min y, min z, max x, max y, max z of each slot's box, in
+    /// f32 rounded outwards.
+    pub planes: [[f32; WIDTH]; 6],
     /// Interior child: its node index; leaf child: first item position;
     /// empty slot: `EMPTY`.
     child: [u32; WIDTH],
     /// Leaf child: item count; interior child: 0.
     count: [u16; WIDTH],
     /// Bit i set when slot i holds a child.
-    valid: u32,
+    pub valid: u32,
 }
 
 impl WideNode {
     const EMPTY_NODE: WideNode = WideNode {
-        // Empty slots are masked out by `valid`.
-        min_x: [f32::INFINITY; WIDTH],
-        min_y: [f32::INFINITY; WIDTH],
-        min_z: [f32::INFINITY; WIDTH],
-        max_x: [f32::NEG_INFINITY; WIDTH],
-        max_y: [f32::NEG_INFINITY; WIDTH],
-        max_z: [f32::NEG_INFINITY; WIDTH],
+        // Empty slots are masked out by `valid`; an inverted box keeps
+        // them out of the scalar path too.
+        planes: [
+            [f32::INFINITY; WIDTH],
+            [f32::INFINITY; WIDTH],
+            [f32::INFINITY; WIDTH],
+            [f32::NEG_INFINITY; WIDTH],
+            [f32::NEG_INFINITY; WIDTH],
+            [f32::NEG_INFINITY; WIDTH],
+        ],
         child: [EMPTY; WIDTH],
         count: [0; WIDTH],
         valid: 0,
     };
 
-    /// Entry distances of the ray into the four child boxes (before
-    /// `t_max`), as a lane mask and the distances.
-    #[inline]
-    fn entries(&self, origin: Vec3A, inv_dir: Vec3A, t_max: f32) -> (u32, [f32; WIDTH]) {
-        let slab = |min: &[f32; WIDTH], max: &[f32; WIDTH], o: f32, inv: f32| {
-            let t0 = (Vec4::from_array(*min) - Vec4::splat(o)) * inv;
-            let t1 = (Vec4::from_array(*max) - Vec4::splat(o)) * inv;
-            (t0.min(t1), t0.max(t1))
-        };
-        let (nx, fx) = slab(&self.min_x, &self.max_x, origin.x, inv_dir.x);
-        let (ny, fy) = slab(&self.min_y, &self.max_y, origin.y, inv_dir.y);
-        let (nz, fz) = slab(&self.min_z, &self.max_z, origin.z, inv_dir.z);
-        let near = nx.max(ny).max(nz).max(Vec4::ZERO);
-        let far = fx.min(fy).min(fz) * (1.0 + 8.0 * f32::EPSILON);
-        let mask = near.cmple(far.min(Vec4::splat(t_max))).bitmask() & self.valid;
-        (mask, near.to_array())
-    }
-}
-
-impl WideNode {
     /// The box of slot `lane`, widened to f64.
     fn lane_box(&self, lane: usize) -> crate::geometry::Aabb {
+        let p = |row: usize| f64::from(self.planes[row][lane]);
         crate::geometry::Aabb {
-            min: glam::DVec3::new(
-                self.min_x[lane].into(),
-                self.min_y[lane].into(),
-                self.min_z[lane].into(),
-            ),
-            max: glam::DVec3::new(
-                self.max_x[lane].into(),
-                self.max_y[lane].into(),
-                self.max_z[lane].into(),
-            ),
+            min: glam::DVec3::new(p(0), p(1), p(2)),
+            max: glam::DVec3::new(p(3), p(4), p(5)),
         }
     }
 
@@ -90,17 +75,18 @@ impl WideNode {
     }
 }
 
-/// A child of a wide node, as the traversal stack holds it.
-#[derive(Clone, Copy, Debug, Default)]
+/// A child of a wide node, as the closest-hit traversal stack holds it.
+#[derive(Clone, Copy, Debug)]
 pub struct StackEntry {
-    index: u32,
-    count: u16,
+    /// Where the ray enters its box.
     entry: f32,
+    index: u32,
+    count: u32,
 }
 
 /// Collapses the binary tree `nodes` (root at 0) into wide nodes, root at 0.
 pub fn collapse(nodes: &[BvhNode]) -> Vec<WideNode> {
-    let mut wide = Vec::with_capacity(nodes.len() / 2 + 1);
+    let mut wide = Vec::with_capacity(nodes.len() / 6 + 1);
     if nodes.is_empty() {
         return wide;
     }
@@ -117,7 +103,7 @@ pub fn collapse(nodes: &[BvhNode]) -> Vec<WideNode> {
 
 /// Builds the wide node for binary interior node `at`, returning its index.
 fn collapse_into(nodes: &[BvhNode], at: usize, wide: &mut Vec<WideNode>) -> u32 {
-    // Open up the child with the largest box until four children show.
+    // Open up the child with the largest box until eight children show.
     let mut children = vec![at + 1, nodes[at].offset() as usize];
     while children.len() < WIDTH {
         let Some((k, _)) = children
@@ -155,22 +141,51 @@ fn collapse_into(nodes: &[BvhNode], at: usize, wide: &mut Vec<WideNode>) -> u32 
 
 fn set_slot(w: &mut WideNode, slot: usize, node: &BvhNode, child: u32, count: u16) {
     let (min, max) = node.raw_bounds();
-    w.min_x[slot] = min[0];
-    w.min_y[slot] = min[1];
-    w.min_z[slot] = min[2];
-    w.max_x[slot] = max[0];
-    w.max_y[slot] = max[1];
-    w.max_z[slot] = max[2];
+    for axis in 0..3 {
+        w.planes[MIN_X + axis][slot] = min[axis];
+        w.planes[MAX_X + axis][slot] = max[axis];
+    }
     w.child[slot] = child;
     w.count[slot] = count;
     w.valid |= 1 << slot;
 }
 
+/// A traversal stack: a fixed array on the call stack (left unwritten until
+/// used: zeroing it for every ray cost 5 % of the bunny's queries) or, for
+/// the rare tree too deep for it, a heap vector.
+pub trait Stack<T>: DerefMut<Target = [T]> {
+    /// Pushes `item`; the caller has made room (see [`stack_need`]).
+    fn push(&mut self, item: T);
+    /// Pops the top item.
+    fn pop(&mut self) -> Option<T>;
+}
+
+impl<T, const N: usize> Stack<T> for ArrayVec<T, N> {
+    #[inline(always)]
+    fn push(&mut self, item: T) {
+        ArrayVec::push(self, item);
+    }
+    #[inline(always)]
+    fn pop(&mut self) -> Option<T> {
+        ArrayVec::pop(self)
+    }
+}
+
+impl<T> Stack<T> for Vec<T> {
+    #[inline(always)]
+    fn push(&mut self, item: T) {
+        Vec::push(self, item);
+    }
+    #[inline(always)]
+    fn pop(&mut self) -> Option<T> {
+        Vec::pop(self)
+    }
+}
+
 /// Traversal stack size kept on the call stack. A visit pops one entry and
-/// pushes at most four, so a tree of depth d needs at most 3·d + 4 entries;
-/// trees deeper than that use a heap stack (zeroing a larger array for
-/// every ray costs measurable time).
-pub const STACK: usize = 64;
+/// pushes at most eight, so a tree of depth d needs at most 7·d + 8
+/// entries; trees deeper than that use a heap stack.
+pub const STACK: usize = 96;
 
 /// The stack entries a traversal of `wide` can need at most.
 pub fn stack_need(wide: &[WideNode]) -> usize {
@@ -185,58 +200,60 @@ pub fn stack_need(wide: &[WideNode]) -> usize {
     if wide.is_empty() {
         0
     } else {
-        3 * depth(wide, 0) + 4
+        (WIDTH - 1) * depth(wide, 0) + WIDTH
     }
 }
 
 /// Closest-hit traversal over wide nodes; see `Bvh::closest`.
-#[inline]
-pub fn closest(
+///
+/// The children a node's test lets through are pushed far to near, so the
+/// nearest is taken first; one lone interior child is gone into without a
+/// push. An entry further than the closest hit found meanwhile is dropped
+/// when popped.
+#[inline(always)]
+pub fn closest<L: Lanes>(
+    lanes: L,
     wide: &[WideNode],
-    origin: Vec3A,
-    inv_dir: Vec3A,
+    ray: &NodeRay,
     mut t_max: f64,
-    stack: &mut [StackEntry],
+    stack: &mut impl Stack<StackEntry>,
     mut test: impl FnMut(usize, f64) -> Option<f64>,
 ) -> f64 {
     if wide.is_empty() {
         return t_max;
     }
-    let mut top = 0usize;
+    let mut limit = NodeRay::box_limit(t_max);
     let mut current = 0usize;
     loop {
         let node = &wide[current];
-        let (mut mask, near) = node.entries(origin, inv_dir, t_max as f32);
-        // Push hit children far to near, so the nearest is popped first.
-        let mut order = [0usize; WIDTH];
-        let mut n = 0;
+        let (mut mask, near) = lanes.entries(node, ray, limit);
+        if mask.count_ones() == 1 && node.count[mask.trailing_zeros() as usize] == 0 {
+            current = node.child[mask.trailing_zeros() as usize] as usize;
+            continue;
+        }
+        // Insert each child at its place among those pushed for this node
+        // (far at the bottom, near on top).
+        let base = stack.len();
         while mask != 0 {
             let lane = mask.trailing_zeros() as usize;
             mask &= mask - 1;
-            let mut k = n;
-            while k > 0 && near[order[k - 1]] < near[lane] {
-                order[k] = order[k - 1];
+            stack.push(StackEntry {
+                index: node.child[lane],
+                count: node.count[lane].into(),
+                entry: near[lane],
+            });
+            let mut k = stack.len() - 1;
+            while k > base && stack[k - 1].entry < stack[k].entry {
+                stack.swap(k - 1, k);
                 k -= 1;
             }
-            order[k] = lane;
-            n += 1;
-        }
-        for &lane in &order[..n] {
-            stack[top] = StackEntry {
-                index: node.child[lane],
-                count: node.count[lane],
-                entry: near[lane],
-            };
-            top += 1;
         }
         // Pop until an interior node to visit; leaves are tested on the way.
         loop {
-            if top == 0 {
+            let Some(e) = stack.pop() else {
                 return t_max;
-            }
-            top -= 1;
-            let e = stack[top];
-            if f64::from(e.entry) > t_max {
+            };
+            if e.entry > limit {
                 continue;
             }
             if e.count == 0 {
@@ -247,31 +264,32 @@ pub fn closest(
             for position in start..start + e.count as usize {
                 if let Some(t) = test(position, t_max) {
                     t_max = t;
+                    limit = NodeRay::box_limit(t_max);
                 }
             }
         }
     }
 }
 
-/// Any-hit traversal over wide nodes; see `Bvh::any`.
-#[inline]
-pub fn any(
+/// Any-hit traversal over wide nodes; see `Bvh::any`. Leaves are tested as
+/// soon as their box is met, interior children go on the stack.
+#[inline(always)]
+pub fn any<L: Lanes>(
+    lanes: L,
     wide: &[WideNode],
-    origin: Vec3A,
-    inv_dir: Vec3A,
+    ray: &NodeRay,
     t_max: f64,
-    stack: &mut [u32],
+    stack: &mut impl Stack<u32>,
     mut test: impl FnMut(usize) -> bool,
 ) -> bool {
     if wide.is_empty() {
         return false;
     }
-    let limit = t_max as f32;
-    let mut top = 0usize;
+    let limit = NodeRay::box_limit(t_max);
     let mut current = 0usize;
     loop {
         let node = &wide[current];
-        let (mut mask, _) = node.entries(origin, inv_dir, limit);
+        let (mut mask, _) = lanes.entries(node, ray, limit);
         while mask != 0 {
             let lane = mask.trailing_zeros() as usize;
             mask &= mask - 1;
@@ -282,15 +300,13 @@ pub fn any(
                     return true;
                 }
             } else {
-                stack[top] = child;
-                top += 1;
+                stack.push(child);
             }
         }
-        if top == 0 {
-            return false;
+        match stack.pop() {
+            Some(next) => current = next as usize,
+            None => return false,
         }
-        top -= 1;
-        current = stack[top] as usize;
     }
 }
 
@@ -299,14 +315,13 @@ pub fn any(
 /// returns false as soon as `visit` returns false.
 pub fn visit(
     wide: &[WideNode],
-    stack: &mut [u32],
+    stack: &mut impl Stack<u32>,
     keep: impl Fn(&crate::geometry::Aabb) -> bool,
     mut visit: impl FnMut(usize) -> bool,
 ) -> bool {
     if wide.is_empty() {
         return true;
     }
-    let mut top = 0usize;
     let mut current = 0usize;
     loop {
         let node = &wide[current];
@@ -324,14 +339,12 @@ pub fn visit(
                     return false;
                 }
             } else {
-                stack[top] = child;
-                top += 1;
+                stack.push(child);
             }
         }
-        if top == 0 {
-            return true;
+        match stack.pop() {
+            Some(next) => current = next as usize,
+            None => return true,
         }
-        top -= 1;
-        current = stack[top] as usize;
     }
 }

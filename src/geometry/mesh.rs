@@ -6,8 +6,10 @@ use glam::{DVec2, DVec3};
 use thiserror::Error;
 
 use super::Aabb;
-use super::triangle::{WatertightRay, triangle_hit};
-use crate::accel::bvh::{BoxRay, Bvh};
+use super::triangle::{TriangleHit, WatertightRay, triangle_hit};
+use crate::accel::NodeRay;
+use crate::accel::bvh::Bvh;
+use crate::accel::simd::{self, Kernel};
 
 /// What a loader hands over to build a mesh.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -214,7 +216,9 @@ impl Mesh {
     }
 
     /// The nearest hit of `origin + t·direction` (direction need not be
-    /// unit) with t in (t_min, t_max).
+    /// unit) with t in (t_min, t_max); of triangles hit at the same t, the
+    /// one first in the mesh's own order, whatever order the tree visits
+    /// them in.
     pub fn intersect(
         &self,
         origin: DVec3,
@@ -222,27 +226,71 @@ impl Mesh {
         t_min: f64,
         t_max: f64,
     ) -> Option<MeshHit> {
+        self.intersect_on(simd::kernel(), origin, direction, t_min, t_max)
+    }
+
+    /// [`intersect`](Self::intersect) on a given SIMD kernel.
+    #[inline]
+    pub(crate) fn intersect_on(
+        &self,
+        kernel: Kernel,
+        origin: DVec3,
+        direction: DVec3,
+        t_min: f64,
+        t_max: f64,
+    ) -> Option<MeshHit> {
         let ray = WatertightRay::new(origin, direction);
-        let mut best = None;
-        self.bvh
-            .closest(&BoxRay::new(origin, direction), t_max, |position, t_max| {
+        let order = self.bvh.order();
+        let mut best: Option<(usize, TriangleHit)> = None;
+        self.bvh.closest_on(
+            kernel,
+            &NodeRay::new(origin, direction),
+            t_max,
+            |position, t_max| {
                 let [a, b, c] = self.corners(position);
-                let h = triangle_hit(&ray, a, b, c, t_min, t_max)?;
+                // Once a hit is held, one at the same t is looked for too.
+                let limit = if best.is_some() {
+                    t_max.next_up()
+                } else {
+                    t_max
+                };
+                let h = triangle_hit(&ray, a, b, c, t_min, limit)?;
+                if best.is_some_and(|(held, bh)| h.t == bh.t && order[held] < order[position]) {
+                    return None;
+                }
                 best = Some((position, h));
                 Some(h.t)
-            });
+            },
+        );
         let (triangle, h) = best?;
         Some(self.surface(triangle, h.barycentric, h.t))
     }
 
     /// Whether any triangle is hit with t in (t_min, t_max).
     pub fn any_hit(&self, origin: DVec3, direction: DVec3, t_min: f64, t_max: f64) -> bool {
+        self.any_hit_on(simd::kernel(), origin, direction, t_min, t_max)
+    }
+
+    /// [`any_hit`](Self::any_hit) on a given SIMD kernel.
+    #[inline]
+    pub(crate) fn any_hit_on(
+        &self,
+        kernel: Kernel,
+        origin: DVec3,
+        direction: DVec3,
+        t_min: f64,
+        t_max: f64,
+    ) -> bool {
         let ray = WatertightRay::new(origin, direction);
-        self.bvh
-            .any(&BoxRay::new(origin, direction), t_max, |position| {
+        self.bvh.any_on(
+            kernel,
+            &NodeRay::new(origin, direction),
+            t_max,
+            |position| {
                 let [a, b, c] = self.corners(position);
                 triangle_hit(&ray, a, b, c, t_min, t_max).is_some()
-            })
+            },
+        )
     }
 
     fn surface(&self, triangle: usize, bary: DVec3, t: f64) -> MeshHit {
@@ -381,5 +429,120 @@ mod tests {
         d.normals = vec![DVec3::Z; 3];
         assert!(matches!(Mesh::new(d), Err(MeshError::CountMismatch { .. })));
         assert_eq!(Mesh::new(MeshData::default()), Err(MeshError::Empty));
+    }
+
+    /// A bumpy n×n grid over [0, n]², heights from a seeded generator.
+    fn bumpy_grid(n: u32, seed: u64) -> MeshData {
+        let mut rng = crate::math::rng::PixelRng::new(seed, 0, 0);
+        let positions = (0..(n + 1) * (n + 1))
+            .map(|i| {
+                DVec3::new(
+                    (i % (n + 1)) as f64,
+                    0.3 * rng.uniform(),
+                    (i / (n + 1)) as f64,
+                )
+            })
+            .collect();
+        let triangles = (0..n * n)
+            .flat_map(|q| {
+                let a = q / n * (n + 1) + q % n;
+                [[a, a + n + 1, a + 1], [a + 1, a + n + 1, a + n + 2]]
+            })
+            .collect();
+        MeshData {
+            positions,
+            triangles,
+            ..Default::default()
+        }
+    }
+
+    fn kernels() -> Vec<Kernel> {
+        crate::accel::SimdPath::ALL
+            .iter()
+            .filter_map(|p| p.kernel())
+            .collect()
+    }
+
+    #[test]
+    fn every_simd_path_gives_the_same_hits() {
+        let data = bumpy_grid(24, 3);
+        let mesh = Mesh::new(data.clone()).unwrap();
+        let mut rng = crate::math::rng::PixelRng::new(11, 0, 0);
+        let mut hits = 0;
+        for i in 0..20_000 {
+            // Aim at a vertex, a point of an edge, or anywhere.
+            let t = data.triangles[(rng.uniform() * data.triangles.len() as f64) as usize];
+            let [a, b, c] = t.map(|k| data.positions[k as usize]);
+            let target = match i % 4 {
+                0 => a,
+                1 => a + (b - a) * 0.5,
+                2 => b + (c - b) * rng.uniform(),
+                _ => DVec3::new(rng.uniform() * 24.0, 0.15, rng.uniform() * 24.0),
+            };
+            let origin = DVec3::new(
+                rng.uniform() * 40.0 - 8.0,
+                0.5 + rng.uniform() * 10.0,
+                rng.uniform() * 40.0 - 8.0,
+            );
+            let direction = target - origin;
+            let t_max = if i % 3 == 0 { 0.999 } else { f64::INFINITY };
+            let kernels = kernels();
+            let first = mesh.intersect_on(kernels[0], origin, direction, 0.0, t_max);
+            let any = mesh.any_hit_on(kernels[0], origin, direction, 0.0, t_max);
+            assert_eq!(first.is_some(), any);
+            hits += usize::from(any);
+            for &k in &kernels[1..] {
+                let other = mesh.intersect_on(k, origin, direction, 0.0, t_max);
+                assert_eq!(
+                    first.map(|h| h.t.to_bits()),
+                    other.map(|h| h.t.to_bits()),
+                    "{k:?}"
+                );
+                assert_eq!(first, other, "{k:?}");
+                assert_eq!(
+                    any,
+                    mesh.any_hit_on(k, origin, direction, 0.0, t_max),
+                    "{k:?}"
+                );
+            }
+        }
+        assert!(hits > 10_000, "{hits}");
+    }
+
+    #[test]
+    fn ties_go_to_the_lowest_triangle_index() {
+        // A duplicate of one grid triangle with another material, once
+        // before the grid and once after it: the same t exactly, so the
+        // lower index must win whatever order the tree visits them in.
+        let grid = bumpy_grid(8, 5);
+        let original = 77;
+        for duplicate_first in [false, true] {
+            let mut data = grid.clone();
+            let copy = data.triangles[original];
+            data.materials = vec![0; data.triangles.len()];
+            let original_index = if duplicate_first {
+                data.triangles.insert(0, copy);
+                data.materials.insert(0, 1);
+                original + 1
+            } else {
+                data.triangles.push(copy);
+                data.materials.push(1);
+                original
+            };
+            let mesh = Mesh::new(data.clone()).unwrap();
+            let [a, b, c] = copy.map(|k| data.positions[k as usize]);
+            let target = (a + b + c) / 3.0;
+            let origin = target + DVec3::new(0.3, 5.0, -0.2);
+            let lowest = if duplicate_first { 0 } else { original_index };
+            for k in kernels() {
+                let h = mesh
+                    .intersect_on(k, origin, target - origin, 0.0, f64::INFINITY)
+                    .unwrap();
+                assert_eq!(
+                    h.material, data.materials[lowest],
+                    "{k:?}, first {duplicate_first}"
+                );
+            }
+        }
     }
 }

@@ -548,11 +548,12 @@ impl Job<'_> {
         if !args.quiet {
             let s = output.stats;
             eprintln!(
-                "prism: {}x{} {} spp, {} threads; load {:.2} s, build {:.2} s, render {:.2} s, write {:.2} s; rays: {} camera, {} reflection, {} refraction, {} shadow; {:.2} Mrays/s -> {}",
+                "prism: {}x{} {} spp, {} threads, {} boxes; load {:.2} s, build {:.2} s, render {:.2} s, write {:.2} s; rays: {} camera, {} reflection, {} refraction, {} shadow; {:.2} Mrays/s -> {}",
                 settings.width,
                 settings.height,
                 settings.spp,
                 threads,
+                prism::accel::simd_path().name(),
                 self.load_time
                     .saturating_sub(self.scene.inventory.build_time)
                     .as_secs_f64(),
