@@ -101,39 +101,69 @@ pub fn collapse(nodes: &[BvhNode]) -> Vec<WideNode> {
     wide
 }
 
+/// Binary subtrees over at most this many items become one leaf of the
+/// wide tree: a node of 256 bytes holding two or three tiny leaves costs
+/// more (memory and a visit) than testing the few items together.
+const MERGE_LEAF: u32 = 4;
+
+/// The item positions under binary node `at`: its leftmost leaf's start
+/// to its rightmost leaf's end (a subtree's items are contiguous).
+fn item_range(nodes: &[BvhNode], at: usize) -> (u32, u32) {
+    let mut left = at;
+    while nodes[left].count() == 0 {
+        left += 1;
+    }
+    let mut right = at;
+    while nodes[right].count() == 0 {
+        right = nodes[right].offset() as usize;
+    }
+    (
+        nodes[left].offset(),
+        nodes[right].offset() + u32::from(nodes[right].count()),
+    )
+}
+
+/// Where a child of a wide node points: a leaf (first position, count),
+/// or a binary interior node to collapse further.
+fn as_leaf(nodes: &[BvhNode], c: usize) -> Option<(u32, u16)> {
+    let node = &nodes[c];
+    if node.count() > 0 {
+        return Some((node.offset(), node.count()));
+    }
+    let (start, end) = item_range(nodes, c);
+    (end - start <= MERGE_LEAF).then(|| (start, (end - start) as u16))
+}
+
 /// Builds the wide node for binary interior node `at`, returning its index.
 fn collapse_into(nodes: &[BvhNode], at: usize, wide: &mut Vec<WideNode>) -> u32 {
     // Open up the child with the largest box until eight children show.
-    let mut children = vec![at + 1, nodes[at].offset() as usize];
+    let child = |c: usize| (c, as_leaf(nodes, c));
+    let mut children = vec![child(at + 1), child(nodes[at].offset() as usize)];
     while children.len() < WIDTH {
         let Some((k, _)) = children
             .iter()
             .enumerate()
-            .filter(|(_, c)| nodes[**c].count() == 0)
+            .filter(|(_, (_, leaf))| leaf.is_none())
             .max_by(|a, b| {
-                nodes[*a.1]
-                    .bounds()
-                    .surface_area()
-                    .total_cmp(&nodes[*b.1].bounds().surface_area())
+                let area = |c: usize| nodes[c].bounds().surface_area();
+                area(a.1.0).total_cmp(&area(b.1.0))
             })
         else {
             break;
         };
-        let c = children.remove(k);
-        children.insert(k, nodes[c].offset() as usize);
-        children.insert(k, c + 1);
+        let (c, _) = children.remove(k);
+        children.insert(k, child(nodes[c].offset() as usize));
+        children.insert(k, child(c + 1));
     }
     let index = wide.len();
     wide.push(WideNode::EMPTY_NODE);
-    for (slot, &c) in children.iter().enumerate() {
-        let node = &nodes[c];
-        let (target, count) = if node.count() > 0 {
-            (node.offset(), node.count())
-        } else {
-            (collapse_into(nodes, c, wide), 0)
+    for (slot, &(c, leaf)) in children.iter().enumerate() {
+        let (target, count) = match leaf {
+            Some(leaf) => leaf,
+            None => (collapse_into(nodes, c, wide), 0),
         };
         let mut w = wide[index];
-        set_slot(&mut w, slot, node, target, count);
+        set_slot(&mut w, slot, &nodes[c], target, count);
         wide[index] = w;
     }
     index as u32

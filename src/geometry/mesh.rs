@@ -205,7 +205,7 @@ impl Mesh {
             + self.bvh.memory_bytes()
     }
 
-    #[inline]
+    #[inline(always)]
     fn corners(&self, triangle: usize) -> [DVec3; 3] {
         let [a, b, c] = self.triangles[triangle];
         [

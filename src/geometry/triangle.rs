@@ -27,7 +27,9 @@ pub struct WatertightRay {
 impl WatertightRay {
     /// Prepares a ray with the given origin and (not necessarily unit)
     /// direction.
+    #[inline]
     pub fn new(origin: DVec3, direction: DVec3) -> Self {
+        let d = direction.to_array();
         let a = direction.abs();
         let kz = if a.x >= a.y && a.x >= a.z {
             0
@@ -36,10 +38,11 @@ impl WatertightRay {
         } else {
             2
         };
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
+        let next = [1, 2, 0];
+        let mut kx = next[kz];
+        let mut ky = next[kx];
         // Keep the winding of the projected triangle.
-        if direction[kz] < 0.0 {
+        if d[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
         WatertightRay {
@@ -47,9 +50,9 @@ impl WatertightRay {
             kx,
             ky,
             kz,
-            sx: direction[kx] / direction[kz],
-            sy: direction[ky] / direction[kz],
-            sz: 1.0 / direction[kz],
+            sx: d[kx] / d[kz],
+            sy: d[ky] / d[kz],
+            sz: 1.0 / d[kz],
         }
     }
 }
@@ -65,7 +68,7 @@ pub struct TriangleHit {
 
 /// The watertight test of `ray` against triangle (a, b, c), keeping hits
 /// with t in (t_min, t_max). Both faces count.
-#[inline]
+#[inline(always)]
 pub fn triangle_hit(
     ray: &WatertightRay,
     a: DVec3,
@@ -74,17 +77,25 @@ pub fn triangle_hit(
     t_min: f64,
     t_max: f64,
 ) -> Option<TriangleHit> {
-    let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
-    let a = a - ray.origin;
-    let b = b - ray.origin;
-    let c = c - ray.origin;
+    // The vertices relative to the origin, permuted to (kx, ky, kz): an
+    // array lookup (the index masked into range, so unchecked) rather than
+    // a three-way branch per coordinate.
+    let (kx, ky, kz) = (ray.kx & 3, ray.ky & 3, ray.kz & 3);
+    let permute = |p: DVec3| {
+        let d = p - ray.origin;
+        let d = [d.x, d.y, d.z, 0.0];
+        (d[kx], d[ky], d[kz])
+    };
+    let (ax, ay, az) = permute(a);
+    let (bx, by, bz) = permute(b);
+    let (cx, cy, cz) = permute(c);
     // Shear the vertices so the ray runs along +z.
-    let ax = a[kx] - ray.sx * a[kz];
-    let ay = a[ky] - ray.sy * a[kz];
-    let bx = b[kx] - ray.sx * b[kz];
-    let by = b[ky] - ray.sy * b[kz];
-    let cx = c[kx] - ray.sx * c[kz];
-    let cy = c[ky] - ray.sy * c[kz];
+    let ax = ax - ray.sx * az;
+    let ay = ay - ray.sy * az;
+    let bx = bx - ray.sx * bz;
+    let by = by - ray.sy * bz;
+    let cx = cx - ray.sx * cz;
+    let cy = cy - ray.sy * cz;
     // Scaled barycentrics: 2D edge functions.
     let u = cx * by - cy * bx;
     let v = ax * cy - ay * cx;
@@ -97,9 +108,9 @@ pub fn triangle_hit(
         return None;
     }
     // Scaled distance, compared before the division.
-    let az = ray.sz * a[kz];
-    let bz = ray.sz * b[kz];
-    let cz = ray.sz * c[kz];
+    let az = ray.sz * az;
+    let bz = ray.sz * bz;
+    let cz = ray.sz * cz;
     let t_scaled = u * az + v * bz + w * cz;
     let t = t_scaled / det;
     if !(t > t_min && t < t_max) {
