@@ -159,7 +159,11 @@ impl Mesh {
                 .map(|t| Aabb::from_points(t.iter().map(|&i| positions[i as usize]))),
         );
         // Store triangles in leaf order, so leaves index them directly.
-        let ordered: Vec<[u32; 3]> = bvh.order().iter().map(|&i| triangles[i as usize]).collect();
+        let mut ordered: Vec<[u32; 3]> =
+            bvh.order().iter().map(|&i| triangles[i as usize]).collect();
+        drop(triangles);
+        let (positions, normals, uvs, colors) =
+            renumber_vertices(&mut ordered, positions, normals, uvs, colors);
         let materials = if materials.is_empty() {
             materials
         } else {
@@ -324,6 +328,45 @@ impl Mesh {
             material: self.materials.get(triangle).copied().unwrap_or(0),
         }
     }
+}
+
+/// Numbers the vertices in the order the leaf-ordered `triangles` first
+/// use them, and reorders the per-vertex data to match: a leaf's vertices,
+/// and its neighbours', then share cache lines instead of lying a grid row
+/// or a file apart (on the 1M terrain most triangle tests waited for their
+/// vertices). Vertices no triangle uses are dropped. The values are
+/// untouched, so every hit is the same.
+fn renumber_vertices(
+    triangles: &mut [[u32; 3]],
+    positions: Vec<DVec3>,
+    normals: Vec<DVec3>,
+    uvs: Vec<DVec2>,
+    colors: Vec<DVec3>,
+) -> (Vec<DVec3>, Vec<DVec3>, Vec<DVec2>, Vec<DVec3>) {
+    const UNSEEN: u32 = u32::MAX;
+    let mut new_number = vec![UNSEEN; positions.len()];
+    let mut old_number = Vec::with_capacity(positions.len());
+    for index in triangles.iter_mut().flatten() {
+        let slot = &mut new_number[*index as usize];
+        if *slot == UNSEEN {
+            *slot = old_number.len() as u32;
+            old_number.push(*index);
+        }
+        *index = *slot;
+    }
+    drop(new_number);
+    fn gather<T: Copy>(values: Vec<T>, old_number: &[u32]) -> Vec<T> {
+        if values.is_empty() {
+            return values;
+        }
+        old_number.iter().map(|&i| values[i as usize]).collect()
+    }
+    (
+        gather(positions, &old_number),
+        gather(normals, &old_number),
+        gather(uvs, &old_number),
+        gather(colors, &old_number),
+    )
 }
 
 #[cfg(test)]
