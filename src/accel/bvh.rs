@@ -152,11 +152,13 @@ impl Bvh {
             return Bvh::default();
         }
         let bounds = items.iter().fold(Aabb::EMPTY, |b, i| b.union(&i.bounds));
-        let nodes = build_node(&mut items, 0);
+        let part = build_part(&mut items, 0);
         // Each transient goes as soon as it is used up: the items before
-        // the 4-wide copy is made, the binary nodes after.
+        // the node array is assembled, the binary nodes once the 4-wide
+        // copy is made.
         let order = items.iter().map(|i| i.index).collect();
         drop(items);
+        let nodes = part.flatten();
         let wide = wide::collapse(&nodes);
         drop(nodes);
         Bvh {
@@ -238,14 +240,127 @@ impl Bvh {
     }
 }
 
-/// Builds the subtree over `items` (reordered in place) as a node array
-/// with offsets relative to the start of `items` and of the array.
-fn build_node(items: &mut [BuildItem], depth: usize) -> Vec<BvhNode> {
+/// The tree as built: subtrees small enough for one thread are node arrays
+/// of their own; above them sit the splits whose halves were built in
+/// parallel. Flattened once into an array of exactly the right size, so
+/// the nodes are never copied level by level.
+enum Part {
+    /// Offsets relative to the array and to the subtree's first item.
+    Nodes(Vec<BvhNode>),
+    Split {
+        parent: BvhNode,
+        left: Box<Part>,
+        right: Box<Part>,
+        left_items: u32,
+    },
+}
+
+impl Part {
+    fn len(&self) -> usize {
+        match self {
+            Part::Nodes(nodes) => nodes.len(),
+            Part::Split { left, right, .. } => 1 + left.len() + right.len(),
+        }
+    }
+
+    /// The depth-first node array, each node array dropped once copied.
+    fn flatten(self) -> Vec<BvhNode> {
+        let mut nodes = Vec::with_capacity(self.len());
+        self.flatten_into(&mut nodes, 0);
+        nodes
+    }
+
+    fn flatten_into(self, out: &mut Vec<BvhNode>, item_base: u32) {
+        match self {
+            Part::Nodes(nodes) => {
+                let node_base = out.len() as u32;
+                out.extend(nodes.into_iter().map(|mut node| {
+                    node.offset += if node.count > 0 { item_base } else { node_base };
+                    node
+                }));
+            }
+            Part::Split {
+                parent,
+                left,
+                right,
+                left_items,
+            } => {
+                let at = out.len();
+                out.push(parent);
+                left.flatten_into(out, item_base);
+                out[at].offset = out.len() as u32;
+                right.flatten_into(out, item_base + left_items);
+            }
+        }
+    }
+}
+
+/// How to divide a subtree's items.
+enum Plan {
+    Leaf,
+    /// Items `..mid` (as reordered) go left.
+    Split {
+        mid: usize,
+        axis: usize,
+    },
+}
+
+/// Builds the tree over `items` (reordered in place), in parallel above
+/// `PARALLEL_THRESHOLD` items.
+fn build_part(items: &mut [BuildItem], depth: usize) -> Part {
+    let n = items.len();
+    if n <= PARALLEL_THRESHOLD {
+        // A subtree over n items has at most 2n - 1 nodes; capacity that is
+        // never written costs address space, not memory.
+        let mut nodes = Vec::with_capacity(2 * n - 1);
+        build_serial(items, depth, 0, &mut nodes);
+        nodes.shrink_to_fit();
+        return Part::Nodes(nodes);
+    }
+    let (bounds, plan) = plan(items, depth);
+    let Plan::Split { mid, axis } = plan else {
+        // Only coinciding centroids of at most MAX_LEAF items make a leaf,
+        // far below the threshold.
+        unreachable!("a leaf of {n} items");
+    };
+    let (left_items, right_items) = items.split_at_mut(mid);
+    let (left, right) = rayon::join(
+        || build_part(left_items, depth + 1),
+        || build_part(right_items, depth + 1),
+    );
+    Part::Split {
+        parent: BvhNode::new(&bounds, 0, 0, axis as u8),
+        left: Box::new(left),
+        right: Box::new(right),
+        left_items: mid as u32,
+    }
+}
+
+/// Appends the subtree over `items` (reordered in place) to `nodes` depth
+/// first: a parent, its left subtree, its right subtree. Item offsets are
+/// counted from `item_base`.
+fn build_serial(items: &mut [BuildItem], depth: usize, item_base: u32, nodes: &mut Vec<BvhNode>) {
+    let (bounds, plan) = plan(items, depth);
+    match plan {
+        Plan::Leaf => nodes.push(BvhNode::new(&bounds, item_base, items.len() as u16, 0)),
+        Plan::Split { mid, axis } => {
+            let at = nodes.len();
+            nodes.push(BvhNode::new(&bounds, 0, 0, axis as u8));
+            let (left, right) = items.split_at_mut(mid);
+            build_serial(left, depth + 1, item_base, nodes);
+            nodes[at].offset = nodes.len() as u32;
+            build_serial(right, depth + 1, item_base + mid as u32, nodes);
+        }
+    }
+}
+
+/// The bounds of `items` and how to divide them (partitioning them if
+/// they are split).
+fn plan(items: &mut [BuildItem], depth: usize) -> (Aabb, Plan) {
     let bounds = items.iter().fold(Aabb::EMPTY, |b, i| b.union(&i.bounds));
-    let leaf = |count: usize| vec![BvhNode::new(&bounds, 0, count as u16, 0)];
     let n = items.len();
     if n == 1 {
-        return leaf(1);
+        return (bounds, Plan::Leaf);
     }
     let centroids = items.iter().fold(Aabb::EMPTY, |b, i| Aabb {
         min: b.min.min(i.centroid()),
@@ -259,75 +374,42 @@ fn build_node(items: &mut [BuildItem], depth: usize) -> Vec<BvhNode> {
     } else {
         2
     };
-    let (mid, axis) = if extent[widest] <= 0.0 {
+    if extent[widest] <= 0.0 {
         // All centroids coincide: no split separates them.
         if n <= MAX_LEAF {
-            return leaf(n);
+            return (bounds, Plan::Leaf);
         }
-        (n / 2, widest)
+        return (
+            bounds,
+            Plan::Split {
+                mid: n / 2,
+                axis: widest,
+            },
+        );
+    }
+    // Past MEDIAN_DEPTH only median splits: pathological inputs (say,
+    // exponentially spaced boxes) cannot make the tree, and the recursions
+    // over it, deeper than MEDIAN_DEPTH + log2(n).
+    let sah = if depth < MEDIAN_DEPTH {
+        sah_split(items, &centroids, bounds.surface_area())
     } else {
-        // Past MEDIAN_DEPTH only median splits: pathological inputs (say,
-        // exponentially spaced boxes) cannot make the tree, and the
-        // recursions over it, deeper than MEDIAN_DEPTH + log2(n).
-        let sah = if depth < MEDIAN_DEPTH {
-            sah_split(items, &centroids, bounds.surface_area())
-        } else {
-            None
-        };
-        match sah {
-            Some(split) => split,
-            None if n <= MAX_LEAF => return leaf(n),
-            None => {
-                // The SAH prefers a leaf but it would be too big: median.
-                items.select_nth_unstable_by(n / 2, |a, b| {
-                    a.centroid()[widest].total_cmp(&b.centroid()[widest])
-                });
-                (n / 2, widest)
+        None
+    };
+    let plan = match sah {
+        Some((mid, axis)) => Plan::Split { mid, axis },
+        None if n <= MAX_LEAF => Plan::Leaf,
+        None => {
+            // The SAH prefers a leaf but it would be too big: median.
+            items.select_nth_unstable_by(n / 2, |a, b| {
+                a.centroid()[widest].total_cmp(&b.centroid()[widest])
+            });
+            Plan::Split {
+                mid: n / 2,
+                axis: widest,
             }
         }
     };
-    let (left_items, right_items) = items.split_at_mut(mid);
-    let (left, right) = if n > PARALLEL_THRESHOLD {
-        rayon::join(
-            || build_node(left_items, depth + 1),
-            || build_node(right_items, depth + 1),
-        )
-    } else {
-        (
-            build_node(left_items, depth + 1),
-            build_node(right_items, depth + 1),
-        )
-    };
-    // The parent goes in front of the left subtree, in its own buffer
-    // (grown in place where the allocator can), so the two halves and the
-    // whole are not all held at once.
-    let left_len = left.len();
-    let mut nodes = left;
-    nodes.reserve_exact(1 + right.len());
-    nodes.insert(
-        0,
-        BvhNode::new(&bounds, (1 + left_len) as u32, 0, axis as u8),
-    );
-    for node in &mut nodes[1..] {
-        if node.count == 0 {
-            node.offset += 1;
-        }
-    }
-    let base = nodes.len() as u32;
-    append(&mut nodes, right, base, mid as u32);
-    nodes
-}
-
-/// Appends a subtree built alone, shifting its node and item offsets.
-fn append(nodes: &mut Vec<BvhNode>, subtree: Vec<BvhNode>, node_base: u32, item_base: u32) {
-    nodes.extend(subtree.into_iter().map(|mut node| {
-        if node.count > 0 {
-            node.offset += item_base;
-        } else {
-            node.offset += node_base;
-        }
-        node
-    }));
+    (bounds, plan)
 }
 
 /// The binned SAH split of `items`: the cheapest bin boundary over the
