@@ -3,7 +3,7 @@
 //! early-exit any-hit traversal. Generic over what the leaves hold: the
 //! caller supplies the leaf test.
 
-use glam::{DVec3, Vec3A};
+use glam::{DVec3, Vec3, Vec3A};
 
 use super::wide::{self, WideNode};
 use crate::geometry::Aabb;
@@ -33,6 +33,15 @@ pub struct BvhNode {
 }
 
 impl BvhNode {
+    /// Fills room not yet written.
+    const UNSET: BvhNode = BvhNode {
+        min: [0.0; 3],
+        max: [0.0; 3],
+        offset: 0,
+        count: 0,
+        axis: 0,
+    };
+
     fn new(bounds: &Aabb, offset: u32, count: u16, axis: u8) -> Self {
         // Round outwards by a relative margin well above f32 rounding of
         // both the box and the ray origin, so no hit is ever culled.
@@ -120,18 +129,44 @@ impl BoxRay {
     }
 }
 
-/// One item while the tree is built: 56 bytes (the centroid is recomputed
-/// from the box where needed rather than stored: 24 bytes less per
-/// triangle at the build's peak).
+/// One item while the tree is built: 28 bytes, its box in f32 rounded
+/// outwards (half the size of an f64 box, at the build's peak). The SAH
+/// decides on these boxes; each node box is their union, so it still
+/// contains the exact boxes below it.
 struct BuildItem {
-    bounds: Aabb,
+    min: Vec3,
+    max: Vec3,
     index: u32,
 }
 
 impl BuildItem {
+    fn new(bounds: &Aabb, index: u32) -> Self {
+        let down = |v: f64| {
+            let f = v as f32;
+            if f64::from(f) > v { f.next_down() } else { f }
+        };
+        let up = |v: f64| {
+            let f = v as f32;
+            if f64::from(f) < v { f.next_up() } else { f }
+        };
+        BuildItem {
+            min: Vec3::from_array(bounds.min.to_array().map(down)),
+            max: Vec3::from_array(bounds.max.to_array().map(up)),
+            index,
+        }
+    }
+
+    #[inline]
+    fn bounds(&self) -> Aabb {
+        Aabb {
+            min: self.min.as_dvec3(),
+            max: self.max.as_dvec3(),
+        }
+    }
+
     #[inline]
     fn centroid(&self) -> DVec3 {
-        self.bounds.centroid()
+        (self.min.as_dvec3() + self.max.as_dvec3()) * 0.5
     }
 }
 
@@ -140,29 +175,33 @@ impl Bvh {
     /// box). Takes an iterator so that callers need not hold a copy of the
     /// boxes besides the builder's own.
     pub fn build(bounds: impl IntoIterator<Item = Aabb>) -> Self {
+        let mut exact = Aabb::EMPTY;
         let mut items: Vec<BuildItem> = bounds
             .into_iter()
             .enumerate()
-            .map(|(i, b)| BuildItem {
-                bounds: b,
-                index: i as u32,
+            .map(|(i, b)| {
+                exact = exact.union(&b);
+                BuildItem::new(&b, i as u32)
             })
             .collect();
         if items.is_empty() {
             return Bvh::default();
         }
-        let bounds = items.iter().fold(Aabb::EMPTY, |b, i| b.union(&i.bounds));
-        let part = build_part(&mut items, 0);
+        // One array with room for the most nodes n items can make (2n - 1),
+        // written in place and then cut to size: no node is copied from
+        // one buffer to another, and the cut returns the rest.
+        let mut nodes = vec![BvhNode::UNSET; 2 * items.len() - 1];
+        let len = build_into(&mut items, 0, &mut nodes, 0, 0);
+        nodes.truncate(len);
+        nodes.shrink_to_fit();
         // Each transient goes as soon as it is used up: the items before
-        // the node array is assembled, the binary nodes once the 4-wide
-        // copy is made.
+        // the 4-wide copy is made, the binary nodes after.
         let order = items.iter().map(|i| i.index).collect();
         drop(items);
-        let nodes = part.flatten();
         let wide = wide::collapse(&nodes);
         drop(nodes);
         Bvh {
-            bounds,
+            bounds: exact,
             stack_need: wide::stack_need(&wide),
             wide,
             order,
@@ -240,61 +279,6 @@ impl Bvh {
     }
 }
 
-/// The tree as built: subtrees small enough for one thread are node arrays
-/// of their own; above them sit the splits whose halves were built in
-/// parallel. Flattened once into an array of exactly the right size, so
-/// the nodes are never copied level by level.
-enum Part {
-    /// Offsets relative to the array and to the subtree's first item.
-    Nodes(Vec<BvhNode>),
-    Split {
-        parent: BvhNode,
-        left: Box<Part>,
-        right: Box<Part>,
-        left_items: u32,
-    },
-}
-
-impl Part {
-    fn len(&self) -> usize {
-        match self {
-            Part::Nodes(nodes) => nodes.len(),
-            Part::Split { left, right, .. } => 1 + left.len() + right.len(),
-        }
-    }
-
-    /// The depth-first node array, each node array dropped once copied.
-    fn flatten(self) -> Vec<BvhNode> {
-        let mut nodes = Vec::with_capacity(self.len());
-        self.flatten_into(&mut nodes, 0);
-        nodes
-    }
-
-    fn flatten_into(self, out: &mut Vec<BvhNode>, item_base: u32) {
-        match self {
-            Part::Nodes(nodes) => {
-                let node_base = out.len() as u32;
-                out.extend(nodes.into_iter().map(|mut node| {
-                    node.offset += if node.count > 0 { item_base } else { node_base };
-                    node
-                }));
-            }
-            Part::Split {
-                parent,
-                left,
-                right,
-                left_items,
-            } => {
-                let at = out.len();
-                out.push(parent);
-                left.flatten_into(out, item_base);
-                out[at].offset = out.len() as u32;
-                right.flatten_into(out, item_base + left_items);
-            }
-        }
-    }
-}
-
 /// How to divide a subtree's items.
 enum Plan {
     Leaf,
@@ -305,17 +289,28 @@ enum Plan {
     },
 }
 
-/// Builds the tree over `items` (reordered in place), in parallel above
-/// `PARALLEL_THRESHOLD` items.
-fn build_part(items: &mut [BuildItem], depth: usize) -> Part {
+/// Writes the subtree over `items` (reordered in place) depth first to the
+/// start of `out`, which has room for its 2n - 1 nodes at most, and
+/// returns how many it wrote. Its root will sit at `node_base` in the
+/// whole array and its first item at `item_base`. Halves of more than
+/// `PARALLEL_THRESHOLD` items are built at once, each in its own part of
+/// `out`; the right one then moves down behind the left.
+fn build_into(
+    items: &mut [BuildItem],
+    depth: usize,
+    out: &mut [BvhNode],
+    node_base: u32,
+    item_base: u32,
+) -> usize {
     let n = items.len();
     if n <= PARALLEL_THRESHOLD {
-        // A subtree over n items has at most 2n - 1 nodes; capacity that is
-        // never written costs address space, not memory.
-        let mut nodes = Vec::with_capacity(2 * n - 1);
-        build_serial(items, depth, 0, &mut nodes);
-        nodes.shrink_to_fit();
-        return Part::Nodes(nodes);
+        let mut nodes = Nodes {
+            out,
+            len: 0,
+            base: node_base,
+        };
+        build_serial(items, depth, item_base, &mut nodes);
+        return nodes.len;
     }
     let (bounds, plan) = plan(items, depth);
     let Plan::Split { mid, axis } = plan else {
@@ -324,31 +319,64 @@ fn build_part(items: &mut [BuildItem], depth: usize) -> Part {
         unreachable!("a leaf of {n} items");
     };
     let (left_items, right_items) = items.split_at_mut(mid);
-    let (left, right) = rayon::join(
-        || build_part(left_items, depth + 1),
-        || build_part(right_items, depth + 1),
+    let (parent, rest) = out.split_first_mut().expect("room for the parent");
+    let (left_out, right_out) = rest.split_at_mut(2 * mid - 1);
+    // The right half is built as if it started where its part does.
+    let right_at = 1 + left_out.len();
+    let (left_len, right_len) = rayon::join(
+        || build_into(left_items, depth + 1, left_out, node_base + 1, item_base),
+        || {
+            build_into(
+                right_items,
+                depth + 1,
+                right_out,
+                node_base + right_at as u32,
+                item_base + mid as u32,
+            )
+        },
     );
-    Part::Split {
-        parent: BvhNode::new(&bounds, 0, 0, axis as u8),
-        left: Box::new(left),
-        right: Box::new(right),
-        left_items: mid as u32,
+    let right_start = 1 + left_len;
+    *parent = BvhNode::new(&bounds, node_base + right_start as u32, 0, axis as u8);
+    out.copy_within(right_at..right_at + right_len, right_start);
+    let shift = (right_at - right_start) as u32;
+    for node in &mut out[right_start..right_start + right_len] {
+        if node.count == 0 {
+            node.offset -= shift;
+        }
+    }
+    right_start + right_len
+}
+
+/// A node array being written front to back into a slice, its first node
+/// at `base` in the whole array.
+struct Nodes<'a> {
+    out: &'a mut [BvhNode],
+    len: usize,
+    base: u32,
+}
+
+impl Nodes<'_> {
+    fn push(&mut self, node: BvhNode) -> usize {
+        self.out[self.len] = node;
+        self.len += 1;
+        self.len - 1
     }
 }
 
-/// Appends the subtree over `items` (reordered in place) to `nodes` depth
-/// first: a parent, its left subtree, its right subtree. Item offsets are
-/// counted from `item_base`.
-fn build_serial(items: &mut [BuildItem], depth: usize, item_base: u32, nodes: &mut Vec<BvhNode>) {
+/// Writes the subtree over `items` (reordered in place) depth first: a
+/// parent, its left subtree, its right subtree. Item offsets are counted
+/// from `item_base`.
+fn build_serial(items: &mut [BuildItem], depth: usize, item_base: u32, nodes: &mut Nodes) {
     let (bounds, plan) = plan(items, depth);
     match plan {
-        Plan::Leaf => nodes.push(BvhNode::new(&bounds, item_base, items.len() as u16, 0)),
+        Plan::Leaf => {
+            nodes.push(BvhNode::new(&bounds, item_base, items.len() as u16, 0));
+        }
         Plan::Split { mid, axis } => {
-            let at = nodes.len();
-            nodes.push(BvhNode::new(&bounds, 0, 0, axis as u8));
+            let at = nodes.push(BvhNode::new(&bounds, 0, 0, axis as u8));
             let (left, right) = items.split_at_mut(mid);
             build_serial(left, depth + 1, item_base, nodes);
-            nodes[at].offset = nodes.len() as u32;
+            nodes.out[at].offset = nodes.base + nodes.len as u32;
             build_serial(right, depth + 1, item_base + mid as u32, nodes);
         }
     }
@@ -357,7 +385,7 @@ fn build_serial(items: &mut [BuildItem], depth: usize, item_base: u32, nodes: &m
 /// The bounds of `items` and how to divide them (partitioning them if
 /// they are split).
 fn plan(items: &mut [BuildItem], depth: usize) -> (Aabb, Plan) {
-    let bounds = items.iter().fold(Aabb::EMPTY, |b, i| b.union(&i.bounds));
+    let bounds = items.iter().fold(Aabb::EMPTY, |b, i| b.union(&i.bounds()));
     let n = items.len();
     if n == 1 {
         return (bounds, Plan::Leaf);
@@ -428,7 +456,7 @@ fn sah_split(items: &mut [BuildItem], centroids: &Aabb, area: f64) -> Option<(us
         for item in items.iter() {
             let b = bin_of(axis, item.centroid()[axis]);
             bin_counts[b] += 1;
-            bin_bounds[b] = bin_bounds[b].union(&item.bounds);
+            bin_bounds[b] = bin_bounds[b].union(&item.bounds());
         }
         // Sweep from the right to get the cost of each right side.
         let mut right_area = [0.0; BINS];
