@@ -4,7 +4,7 @@
 //! caller supplies the leaf test.
 
 use arrayvec::ArrayVec;
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 
 use super::simd::{self, Kernel, NodeRay};
 use super::wide::{self, WideNode};
@@ -35,6 +35,15 @@ pub struct BvhNode {
 }
 
 impl BvhNode {
+    /// Fills room not yet written.
+    const UNSET: BvhNode = BvhNode {
+        min: [0.0; 3],
+        max: [0.0; 3],
+        offset: 0,
+        count: 0,
+        axis: 0,
+    };
+
     fn new(bounds: &Aabb, offset: u32, count: u16, axis: u8) -> Self {
         // Round outwards by a relative margin well above f32 rounding of
         // both the box and the ray origin, so no hit is ever culled.
@@ -93,18 +102,44 @@ pub struct Bvh {
     order: Vec<u32>,
 }
 
-/// One item while the tree is built: 56 bytes (the centroid is recomputed
-/// from the box where needed rather than stored: 24 bytes less per
-/// triangle at the build's peak).
+/// One item while the tree is built: 28 bytes, its box in f32 rounded
+/// outwards (half the size of an f64 box, at the build's peak). The SAH
+/// decides on these boxes; each node box is their union, so it still
+/// contains the exact boxes below it.
 struct BuildItem {
-    bounds: Aabb,
+    min: Vec3,
+    max: Vec3,
     index: u32,
 }
 
 impl BuildItem {
+    fn new(bounds: &Aabb, index: u32) -> Self {
+        let down = |v: f64| {
+            let f = v as f32;
+            if f64::from(f) > v { f.next_down() } else { f }
+        };
+        let up = |v: f64| {
+            let f = v as f32;
+            if f64::from(f) < v { f.next_up() } else { f }
+        };
+        BuildItem {
+            min: Vec3::from_array(bounds.min.to_array().map(down)),
+            max: Vec3::from_array(bounds.max.to_array().map(up)),
+            index,
+        }
+    }
+
+    #[inline]
+    fn bounds(&self) -> Aabb {
+        Aabb {
+            min: self.min.as_dvec3(),
+            max: self.max.as_dvec3(),
+        }
+    }
+
     #[inline]
     fn centroid(&self) -> DVec3 {
-        self.bounds.centroid()
+        (self.min.as_dvec3() + self.max.as_dvec3()) * 0.5
     }
 }
 
@@ -113,19 +148,25 @@ impl Bvh {
     /// box). Takes an iterator so that callers need not hold a copy of the
     /// boxes besides the builder's own.
     pub fn build(bounds: impl IntoIterator<Item = Aabb>) -> Self {
+        let mut exact = Aabb::EMPTY;
         let mut items: Vec<BuildItem> = bounds
             .into_iter()
             .enumerate()
-            .map(|(i, b)| BuildItem {
-                bounds: b,
-                index: i as u32,
+            .map(|(i, b)| {
+                exact = exact.union(&b);
+                BuildItem::new(&b, i as u32)
             })
             .collect();
         if items.is_empty() {
             return Bvh::default();
         }
-        let bounds = items.iter().fold(Aabb::EMPTY, |b, i| b.union(&i.bounds));
-        let nodes = build_node(&mut items, 0);
+        // One array with room for the most nodes n items can make (2n - 1),
+        // written in place and then cut to size: no node is copied from
+        // one buffer to another, and the cut returns the rest.
+        let mut nodes = vec![BvhNode::UNSET; 2 * items.len() - 1];
+        let len = build_into(&mut items, 0, &mut nodes, 0, 0);
+        nodes.truncate(len);
+        nodes.shrink_to_fit();
         // Each transient goes as soon as it is used up: the items before
         // the 8-wide copy is made, the binary nodes after.
         let order = items.iter().map(|i| i.index).collect();
@@ -133,7 +174,7 @@ impl Bvh {
         let wide = wide::collapse(&nodes);
         drop(nodes);
         Bvh {
-            bounds,
+            bounds: exact,
             stack_need: wide::stack_need(&wide),
             wide,
             order,
@@ -238,14 +279,116 @@ impl Bvh {
     }
 }
 
-/// Builds the subtree over `items` (reordered in place) as a node array
-/// with offsets relative to the start of `items` and of the array.
-fn build_node(items: &mut [BuildItem], depth: usize) -> Vec<BvhNode> {
-    let bounds = items.iter().fold(Aabb::EMPTY, |b, i| b.union(&i.bounds));
-    let leaf = |count: usize| vec![BvhNode::new(&bounds, 0, count as u16, 0)];
+/// How to divide a subtree's items.
+enum Plan {
+    Leaf,
+    /// Items `..mid` (as reordered) go left.
+    Split {
+        mid: usize,
+        axis: usize,
+    },
+}
+
+/// Writes the subtree over `items` (reordered in place) depth first to the
+/// start of `out`, which has room for its 2n - 1 nodes at most, and
+/// returns how many it wrote. Its root will sit at `node_base` in the
+/// whole array and its first item at `item_base`. Halves of more than
+/// `PARALLEL_THRESHOLD` items are built at once, each in its own part of
+/// `out`; the right one then moves down behind the left.
+fn build_into(
+    items: &mut [BuildItem],
+    depth: usize,
+    out: &mut [BvhNode],
+    node_base: u32,
+    item_base: u32,
+) -> usize {
+    let n = items.len();
+    if n <= PARALLEL_THRESHOLD {
+        let mut nodes = Nodes {
+            out,
+            len: 0,
+            base: node_base,
+        };
+        build_serial(items, depth, item_base, &mut nodes);
+        return nodes.len;
+    }
+    let (bounds, plan) = plan(items, depth);
+    let Plan::Split { mid, axis } = plan else {
+        // Only coinciding centroids of at most MAX_LEAF items make a leaf,
+        // far below the threshold.
+        unreachable!("a leaf of {n} items");
+    };
+    let (left_items, right_items) = items.split_at_mut(mid);
+    let (parent, rest) = out.split_first_mut().expect("room for the parent");
+    let (left_out, right_out) = rest.split_at_mut(2 * mid - 1);
+    // The right half is built as if it started where its part does.
+    let right_at = 1 + left_out.len();
+    let (left_len, right_len) = rayon::join(
+        || build_into(left_items, depth + 1, left_out, node_base + 1, item_base),
+        || {
+            build_into(
+                right_items,
+                depth + 1,
+                right_out,
+                node_base + right_at as u32,
+                item_base + mid as u32,
+            )
+        },
+    );
+    let right_start = 1 + left_len;
+    *parent = BvhNode::new(&bounds, node_base + right_start as u32, 0, axis as u8);
+    out.copy_within(right_at..right_at + right_len, right_start);
+    let shift = (right_at - right_start) as u32;
+    for node in &mut out[right_start..right_start + right_len] {
+        if node.count == 0 {
+            node.offset -= shift;
+        }
+    }
+    right_start + right_len
+}
+
+/// A node array being written front to back into a slice, its first node
+/// at `base` in the whole array.
+struct Nodes<'a> {
+    out: &'a mut [BvhNode],
+    len: usize,
+    base: u32,
+}
+
+impl Nodes<'_> {
+    fn push(&mut self, node: BvhNode) -> usize {
+        self.out[self.len] = node;
+        self.len += 1;
+        self.len - 1
+    }
+}
+
+/// Writes the subtree over `items` (reordered in place) depth first: a
+/// parent, its left subtree, its right subtree. Item offsets are counted
+/// from `item_base`.
+fn build_serial(items: &mut [BuildItem], depth: usize, item_base: u32, nodes: &mut Nodes) {
+    let (bounds, plan) = plan(items, depth);
+    match plan {
+        Plan::Leaf => {
+            nodes.push(BvhNode::new(&bounds, item_base, items.len() as u16, 0));
+        }
+        Plan::Split { mid, axis } => {
+            let at = nodes.push(BvhNode::new(&bounds, 0, 0, axis as u8));
+            let (left, right) = items.split_at_mut(mid);
+            build_serial(left, depth + 1, item_base, nodes);
+            nodes.out[at].offset = nodes.base + nodes.len as u32;
+            build_serial(right, depth + 1, item_base + mid as u32, nodes);
+        }
+    }
+}
+
+/// The bounds of `items` and how to divide them (partitioning them if
+/// they are split).
+fn plan(items: &mut [BuildItem], depth: usize) -> (Aabb, Plan) {
+    let bounds = items.iter().fold(Aabb::EMPTY, |b, i| b.union(&i.bounds()));
     let n = items.len();
     if n == 1 {
-        return leaf(1);
+        return (bounds, Plan::Leaf);
     }
     let centroids = items.iter().fold(Aabb::EMPTY, |b, i| Aabb {
         min: b.min.min(i.centroid()),
@@ -259,75 +402,42 @@ fn build_node(items: &mut [BuildItem], depth: usize) -> Vec<BvhNode> {
     } else {
         2
     };
-    let (mid, axis) = if extent[widest] <= 0.0 {
+    if extent[widest] <= 0.0 {
         // All centroids coincide: no split separates them.
         if n <= MAX_LEAF {
-            return leaf(n);
+            return (bounds, Plan::Leaf);
         }
-        (n / 2, widest)
+        return (
+            bounds,
+            Plan::Split {
+                mid: n / 2,
+                axis: widest,
+            },
+        );
+    }
+    // Past MEDIAN_DEPTH only median splits: pathological inputs (say,
+    // exponentially spaced boxes) cannot make the tree, and the recursions
+    // over it, deeper than MEDIAN_DEPTH + log2(n).
+    let sah = if depth < MEDIAN_DEPTH {
+        sah_split(items, &centroids, bounds.surface_area())
     } else {
-        // Past MEDIAN_DEPTH only median splits: pathological inputs (say,
-        // exponentially spaced boxes) cannot make the tree, and the
-        // recursions over it, deeper than MEDIAN_DEPTH + log2(n).
-        let sah = if depth < MEDIAN_DEPTH {
-            sah_split(items, &centroids, bounds.surface_area())
-        } else {
-            None
-        };
-        match sah {
-            Some(split) => split,
-            None if n <= MAX_LEAF => return leaf(n),
-            None => {
-                // The SAH prefers a leaf but it would be too big: median.
-                items.select_nth_unstable_by(n / 2, |a, b| {
-                    a.centroid()[widest].total_cmp(&b.centroid()[widest])
-                });
-                (n / 2, widest)
+        None
+    };
+    let plan = match sah {
+        Some((mid, axis)) => Plan::Split { mid, axis },
+        None if n <= MAX_LEAF => Plan::Leaf,
+        None => {
+            // The SAH prefers a leaf but it would be too big: median.
+            items.select_nth_unstable_by(n / 2, |a, b| {
+                a.centroid()[widest].total_cmp(&b.centroid()[widest])
+            });
+            Plan::Split {
+                mid: n / 2,
+                axis: widest,
             }
         }
     };
-    let (left_items, right_items) = items.split_at_mut(mid);
-    let (left, right) = if n > PARALLEL_THRESHOLD {
-        rayon::join(
-            || build_node(left_items, depth + 1),
-            || build_node(right_items, depth + 1),
-        )
-    } else {
-        (
-            build_node(left_items, depth + 1),
-            build_node(right_items, depth + 1),
-        )
-    };
-    // The parent goes in front of the left subtree, in its own buffer
-    // (grown in place where the allocator can), so the two halves and the
-    // whole are not all held at once.
-    let left_len = left.len();
-    let mut nodes = left;
-    nodes.reserve_exact(1 + right.len());
-    nodes.insert(
-        0,
-        BvhNode::new(&bounds, (1 + left_len) as u32, 0, axis as u8),
-    );
-    for node in &mut nodes[1..] {
-        if node.count == 0 {
-            node.offset += 1;
-        }
-    }
-    let base = nodes.len() as u32;
-    append(&mut nodes, right, base, mid as u32);
-    nodes
-}
-
-/// Appends a subtree built alone, shifting its node and item offsets.
-fn append(nodes: &mut Vec<BvhNode>, subtree: Vec<BvhNode>, node_base: u32, item_base: u32) {
-    nodes.extend(subtree.into_iter().map(|mut node| {
-        if node.count > 0 {
-            node.offset += item_base;
-        } else {
-            node.offset += node_base;
-        }
-        node
-    }));
+    (bounds, plan)
 }
 
 /// The binned SAH split of `items`: the cheapest bin boundary over the
@@ -346,7 +456,7 @@ fn sah_split(items: &mut [BuildItem], centroids: &Aabb, area: f64) -> Option<(us
         for item in items.iter() {
             let b = bin_of(axis, item.centroid()[axis]);
             bin_counts[b] += 1;
-            bin_bounds[b] = bin_bounds[b].union(&item.bounds);
+            bin_bounds[b] = bin_bounds[b].union(&item.bounds());
         }
         // Sweep from the right to get the cost of each right side.
         let mut right_area = [0.0; BINS];

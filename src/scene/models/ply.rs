@@ -11,6 +11,11 @@ use super::{Model, ModelError, fan};
 use crate::geometry::MeshData;
 use crate::scene::resources::Resources;
 
+/// A vertex with only a position, as most large models have: 24 bytes, and
+/// its array becomes the position array in place.
+#[derive(Default)]
+struct Position([f64; 3]);
+
 #[derive(Default)]
 struct Vertex {
     position: [f64; 3],
@@ -89,6 +94,21 @@ impl PropertyAccess for Vertex {
     }
 }
 
+impl PropertyAccess for Position {
+    fn new() -> Self {
+        Position::default()
+    }
+    fn set_property(&mut self, key: &str, property: Property) {
+        let Some(v) = scalar(&property) else { return };
+        match key {
+            "x" => self.0[0] = v,
+            "y" => self.0[1] = v,
+            "z" => self.0[2] = v,
+            _ => {}
+        }
+    }
+}
+
 impl PropertyAccess for Face {
     fn new() -> Self {
         Face::default()
@@ -111,10 +131,9 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
     let header = vertex_parser
         .read_header(&mut reader)
         .map_err(|e| err(format!("bad PLY header: {e}")))?;
-    let mut vertices = Vec::new();
+    let (mut positions, mut normals, mut uvs) = (Vec::new(), Vec::new(), Vec::new());
     let mut faces = Vec::new();
     let mut warnings = Vec::new();
-    let (mut has_normals, mut has_uvs) = (false, false);
     for (name, element) in &header.elements {
         let truncated = |e: std::io::Error| {
             let what = if e.kind() == std::io::ErrorKind::UnexpectedEof {
@@ -129,13 +148,36 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
         };
         match name.as_str() {
             "vertex" => {
-                has_normals = element.properties.contains_key("nx");
-                has_uvs = ["u", "s", "texture_u", "texture_s"]
+                let has_normals = element.properties.contains_key("nx");
+                let has_uvs = ["u", "s", "texture_u", "texture_s"]
                     .iter()
                     .any(|k| element.properties.contains_key(*k));
-                vertices = vertex_parser
+                if !has_normals && !has_uvs {
+                    // Same layout: the collect reuses the parser's array.
+                    positions = Parser::<Position>::new()
+                        .read_payload_for_element(&mut reader, element, &header)
+                        .map_err(truncated)?
+                        .into_iter()
+                        .map(|p| DVec3::from_array(p.0))
+                        .collect();
+                    continue;
+                }
+                let vertices = vertex_parser
                     .read_payload_for_element(&mut reader, element, &header)
                     .map_err(truncated)?;
+                positions = vertices
+                    .iter()
+                    .map(|v| DVec3::from_array(v.position))
+                    .collect();
+                if has_normals {
+                    normals = vertices
+                        .iter()
+                        .map(|v| DVec3::from_array(v.normal))
+                        .collect();
+                }
+                if has_uvs {
+                    uvs = vertices.iter().map(|v| DVec2::from_array(v.uv)).collect();
+                }
             }
             "face" => {
                 faces = face_parser
@@ -152,7 +194,7 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
             }
         }
     }
-    let count = vertices.len();
+    let count = positions.len();
     let mut triangles = Vec::with_capacity(faces.len());
     for (i, face) in faces.iter().enumerate() {
         let out_of_range = |bad: i64| {
@@ -183,32 +225,15 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
         }
     }
     drop(faces);
-    if let Some(i) = vertices
-        .iter()
-        .position(|v| !v.position.iter().all(|c| c.is_finite()))
-    {
+    if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
         return Err(err(format!(
             "vertex {i} has a coordinate that is not a finite number"
         )));
     }
     let mesh = MeshData {
-        positions: vertices
-            .iter()
-            .map(|v| DVec3::from_array(v.position))
-            .collect(),
-        normals: if has_normals {
-            vertices
-                .iter()
-                .map(|v| DVec3::from_array(v.normal))
-                .collect()
-        } else {
-            Vec::new()
-        },
-        uvs: if has_uvs {
-            vertices.iter().map(|v| DVec2::from_array(v.uv)).collect()
-        } else {
-            Vec::new()
-        },
+        positions,
+        normals,
+        uvs,
         triangles,
         materials: Vec::new(),
         colors: Vec::new(),
