@@ -8,6 +8,7 @@ use glam::{DVec3, Vec3};
 
 use super::simd::{self, Kernel, NodeRay};
 use super::wide::{self, WideNode};
+pub use super::wide::{AnyTest, ClosestTest};
 use crate::geometry::Aabb;
 
 /// Items per leaf at most; fewer if the SAH says a split pays.
@@ -213,12 +214,7 @@ impl Bvh {
     /// that may hold a hit at or before `t_max` is visited, so `test` sees
     /// ties too.
     #[inline]
-    pub fn closest(
-        &self,
-        ray: &NodeRay,
-        t_max: f64,
-        test: impl FnMut(usize, f64) -> Option<f64>,
-    ) -> f64 {
+    pub fn closest(&self, ray: &NodeRay, t_max: f64, test: impl ClosestTest) -> f64 {
         self.closest_on(simd::kernel(), ray, t_max, test)
     }
 
@@ -229,7 +225,7 @@ impl Bvh {
         kernel: Kernel,
         ray: &NodeRay,
         t_max: f64,
-        test: impl FnMut(usize, f64) -> Option<f64>,
+        test: impl ClosestTest,
     ) -> f64 {
         if self.stack_need <= wide::STACK {
             let mut stack = ArrayVec::<_, { wide::STACK }>::new();
@@ -256,7 +252,7 @@ impl Bvh {
     /// Any-hit traversal: true as soon as `test(position)` is true for an
     /// item in a leaf the ray meets within `t_max`.
     #[inline]
-    pub fn any(&self, ray: &NodeRay, t_max: f64, test: impl FnMut(usize) -> bool) -> bool {
+    pub fn any(&self, ray: &NodeRay, t_max: f64, test: impl AnyTest) -> bool {
         self.any_on(simd::kernel(), ray, t_max, test)
     }
 
@@ -267,7 +263,7 @@ impl Bvh {
         kernel: Kernel,
         ray: &NodeRay,
         t_max: f64,
-        test: impl FnMut(usize) -> bool,
+        test: impl AnyTest,
     ) -> bool {
         if self.stack_need <= wide::STACK {
             let mut stack = ArrayVec::<_, { wide::STACK }>::new();

@@ -212,6 +212,35 @@ impl<T> Stack<T> for Vec<T> {
     }
 }
 
+/// What the closest-hit traversal asks of a leaf item: the distance of a
+/// hit at or before `t_max` that it keeps. A trait rather than a closure
+/// so that an implementation can insist on being inlined into the
+/// traversal (a closure there stayed a call: 16 % of the bunny's profile).
+pub trait ClosestTest {
+    /// Tests item `position` against the ray up to `t_max`.
+    fn test(&mut self, position: usize, t_max: f64) -> Option<f64>;
+}
+
+impl<F: FnMut(usize, f64) -> Option<f64>> ClosestTest for F {
+    #[inline(always)]
+    fn test(&mut self, position: usize, t_max: f64) -> Option<f64> {
+        self(position, t_max)
+    }
+}
+
+/// What the any-hit traversal asks of a leaf item: whether it blocks.
+pub trait AnyTest {
+    /// Whether item `position` is hit within the segment.
+    fn test(&mut self, position: usize) -> bool;
+}
+
+impl<F: FnMut(usize) -> bool> AnyTest for F {
+    #[inline(always)]
+    fn test(&mut self, position: usize) -> bool {
+        self(position)
+    }
+}
+
 /// Traversal stack size kept on the call stack. A visit pops one entry and
 /// pushes at most eight, so a tree of depth d needs at most 7·d + 8
 /// entries; trees deeper than that use a heap stack.
@@ -247,7 +276,7 @@ pub fn closest<L: Lanes>(
     ray: &NodeRay,
     mut t_max: f64,
     stack: &mut impl Stack<StackEntry>,
-    mut test: impl FnMut(usize, f64) -> Option<f64>,
+    mut leaf: impl ClosestTest,
 ) -> f64 {
     if wide.is_empty() {
         return t_max;
@@ -292,7 +321,7 @@ pub fn closest<L: Lanes>(
             }
             let start = e.index as usize;
             for position in start..start + e.count as usize {
-                if let Some(t) = test(position, t_max) {
+                if let Some(t) = leaf.test(position, t_max) {
                     t_max = t;
                     limit = NodeRay::box_limit(t_max);
                 }
@@ -310,7 +339,7 @@ pub fn any<L: Lanes>(
     ray: &NodeRay,
     t_max: f64,
     stack: &mut impl Stack<u32>,
-    mut test: impl FnMut(usize) -> bool,
+    mut leaf: impl AnyTest,
 ) -> bool {
     if wide.is_empty() {
         return false;
@@ -326,7 +355,7 @@ pub fn any<L: Lanes>(
             let (child, count) = (node.child[lane], node.count[lane]);
             if count > 0 {
                 let start = child as usize;
-                if (start..start + count as usize).any(&mut test) {
+                if (start..start + count as usize).any(|p| leaf.test(p)) {
                     return true;
                 }
             } else {

@@ -8,7 +8,7 @@ use thiserror::Error;
 use super::Aabb;
 use super::triangle::{TriangleHit, WatertightRay, triangle_hit};
 use crate::accel::NodeRay;
-use crate::accel::bvh::Bvh;
+use crate::accel::bvh::{AnyTest, Bvh, ClosestTest};
 use crate::accel::simd::{self, Kernel};
 
 /// What a loader hands over to build a mesh.
@@ -243,30 +243,15 @@ impl Mesh {
         t_min: f64,
         t_max: f64,
     ) -> Option<MeshHit> {
-        let ray = WatertightRay::new(origin, direction);
-        let order = self.bvh.order();
-        let mut best: Option<(usize, TriangleHit)> = None;
-        self.bvh.closest_on(
-            kernel,
-            &NodeRay::new(origin, direction),
-            t_max,
-            |position, t_max| {
-                let [a, b, c] = self.corners(position);
-                // Once a hit is held, one at the same t is looked for too.
-                let limit = if best.is_some() {
-                    t_max.next_up()
-                } else {
-                    t_max
-                };
-                let h = triangle_hit(&ray, a, b, c, t_min, limit)?;
-                if best.is_some_and(|(held, bh)| h.t == bh.t && order[held] < order[position]) {
-                    return None;
-                }
-                best = Some((position, h));
-                Some(h.t)
-            },
-        );
-        let (triangle, h) = best?;
+        let mut leaf = ClosestTriangle {
+            mesh: self,
+            ray: WatertightRay::new(origin, direction),
+            t_min,
+            best: None,
+        };
+        self.bvh
+            .closest_on(kernel, &NodeRay::new(origin, direction), t_max, &mut leaf);
+        let (triangle, h) = leaf.best?;
         Some(self.surface(triangle, h.barycentric, h.t))
     }
 
@@ -285,16 +270,14 @@ impl Mesh {
         t_min: f64,
         t_max: f64,
     ) -> bool {
-        let ray = WatertightRay::new(origin, direction);
-        self.bvh.any_on(
-            kernel,
-            &NodeRay::new(origin, direction),
+        let leaf = BlockingTriangle {
+            mesh: self,
+            ray: WatertightRay::new(origin, direction),
+            t_min,
             t_max,
-            |position| {
-                let [a, b, c] = self.corners(position);
-                triangle_hit(&ray, a, b, c, t_min, t_max).is_some()
-            },
-        )
+        };
+        self.bvh
+            .any_on(kernel, &NodeRay::new(origin, direction), t_max, leaf)
     }
 
     fn surface(&self, triangle: usize, bary: DVec3, t: f64) -> MeshHit {
@@ -327,6 +310,55 @@ impl Mesh {
             color,
             material: self.materials.get(triangle).copied().unwrap_or(0),
         }
+    }
+}
+
+/// The closest-hit leaf test: the watertight test, keeping the nearest hit
+/// and, of hits at the same t, the triangle first in the mesh's own order.
+struct ClosestTriangle<'a> {
+    mesh: &'a Mesh,
+    ray: WatertightRay,
+    t_min: f64,
+    /// Leaf position and hit of the triangle kept so far.
+    best: Option<(usize, TriangleHit)>,
+}
+
+impl ClosestTest for &mut ClosestTriangle<'_> {
+    #[inline(always)]
+    fn test(&mut self, position: usize, t_max: f64) -> Option<f64> {
+        let [a, b, c] = self.mesh.corners(position);
+        // Once a hit is held, one at the same t is looked for too.
+        let limit = if self.best.is_some() {
+            t_max.next_up()
+        } else {
+            t_max
+        };
+        let h = triangle_hit(&self.ray, a, b, c, self.t_min, limit)?;
+        let order = self.mesh.bvh.order();
+        if self
+            .best
+            .is_some_and(|(held, bh)| h.t == bh.t && order[held] < order[position])
+        {
+            return None;
+        }
+        self.best = Some((position, h));
+        Some(h.t)
+    }
+}
+
+/// The any-hit leaf test.
+struct BlockingTriangle<'a> {
+    mesh: &'a Mesh,
+    ray: WatertightRay,
+    t_min: f64,
+    t_max: f64,
+}
+
+impl AnyTest for BlockingTriangle<'_> {
+    #[inline(always)]
+    fn test(&mut self, position: usize) -> bool {
+        let [a, b, c] = self.mesh.corners(position);
+        triangle_hit(&self.ray, a, b, c, self.t_min, self.t_max).is_some()
     }
 }
 

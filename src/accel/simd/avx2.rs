@@ -7,7 +7,7 @@
 use std::arch::x86_64::*;
 
 use super::{Lanes, NodeRay, SLACK};
-use crate::accel::wide::{self, Stack, StackEntry, WIDTH, WideNode};
+use crate::accel::wide::{self, AnyTest, ClosestTest, Stack, StackEntry, WIDTH, WideNode};
 
 /// Proof that this CPU runs AVX2: made only by [`Avx2::detect`].
 #[derive(Clone, Copy, Debug)]
@@ -81,7 +81,7 @@ pub fn closest(
     ray: &NodeRay,
     t_max: f64,
     stack: &mut impl Stack<StackEntry>,
-    test: impl FnMut(usize, f64) -> Option<f64>,
+    test: impl ClosestTest,
 ) -> f64 {
     #[target_feature(enable = "avx2")]
     fn run(
@@ -90,7 +90,7 @@ pub fn closest(
         ray: &NodeRay,
         t_max: f64,
         stack: &mut impl Stack<StackEntry>,
-        test: impl FnMut(usize, f64) -> Option<f64>,
+        test: impl ClosestTest,
     ) -> f64 {
         wide::closest(proof, nodes, ray, t_max, stack, test)
     }
@@ -106,7 +106,7 @@ pub fn any(
     ray: &NodeRay,
     t_max: f64,
     stack: &mut impl Stack<u32>,
-    test: impl FnMut(usize) -> bool,
+    test: impl AnyTest,
 ) -> bool {
     #[target_feature(enable = "avx2")]
     fn run(
@@ -115,7 +115,7 @@ pub fn any(
         ray: &NodeRay,
         t_max: f64,
         stack: &mut impl Stack<u32>,
-        test: impl FnMut(usize) -> bool,
+        test: impl AnyTest,
     ) -> bool {
         wide::any(proof, nodes, ray, t_max, stack, test)
     }

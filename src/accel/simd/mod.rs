@@ -18,7 +18,7 @@ use std::sync::OnceLock;
 
 use glam::{DVec3, Vec4};
 
-use super::wide::{self, MAX_X, MIN_X, Stack, StackEntry, WIDTH, WideNode};
+use super::wide::{self, AnyTest, ClosestTest, MAX_X, MIN_X, Stack, StackEntry, WIDTH, WideNode};
 
 /// An instruction set for the wide node test.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -111,7 +111,7 @@ impl Kernel {
         ray: &NodeRay,
         t_max: f64,
         stack: &mut impl Stack<StackEntry>,
-        test: impl FnMut(usize, f64) -> Option<f64>,
+        test: impl ClosestTest,
     ) -> f64 {
         match self {
             #[cfg(target_arch = "x86_64")]
@@ -129,7 +129,7 @@ impl Kernel {
         ray: &NodeRay,
         t_max: f64,
         stack: &mut impl Stack<u32>,
-        test: impl FnMut(usize) -> bool,
+        test: impl AnyTest,
     ) -> bool {
         match self {
             #[cfg(target_arch = "x86_64")]
