@@ -85,6 +85,9 @@ pub enum LightSampler {
         to_center: DVec3,
         /// The light's radius.
         radius: f64,
+        /// The point's power with respect to the sphere, (d − r)(d + r):
+        /// the same for every feeler, so worked out once.
+        power: f64,
         /// Distance falloff factor.
         falloff: f64,
         /// One stratum of directions per sample.
@@ -137,6 +140,7 @@ impl Light {
                     cos_max: (1.0 - radius * radius / d2).max(0.0).sqrt(),
                     to_center,
                     radius,
+                    power: sphere_power(to_center, radius),
                     falloff: self.falloff(d2),
                     strata: Strata::new(samples as usize),
                 }
@@ -199,11 +203,12 @@ impl LightSampler {
                 cos_max,
                 to_center,
                 radius,
+                power,
                 falloff,
                 strata,
             } => {
                 let direction = uniform_cone(&frame, cos_max, strata.point(index, rng));
-                let distance = distance_to_sphere(direction, to_center, radius);
+                let distance = feeler_length(direction, to_center, radius, power);
                 LightSample {
                     direction,
                     distance,
@@ -235,13 +240,33 @@ pub fn spot_attenuation(cos_angle: f64, cos_inner: f64, cos_outer: f64) -> f64 {
 /// the line outside the sphere: then the tangent point, t = b.
 #[inline]
 pub fn distance_to_sphere(direction: DVec3, to_center: DVec3, radius: f64) -> f64 {
+    feeler_length(
+        direction,
+        to_center,
+        radius,
+        sphere_power(to_center, radius),
+    )
+}
+
+/// The power of a point with respect to a sphere, |C|² − r² = (d − r)(d + r)
+/// (d = |C|, C the vector to the centre), in the product form that does not
+/// cancel near the sphere.
+#[inline]
+pub fn sphere_power(to_center: DVec3, radius: f64) -> f64 {
+    let d = to_center.length();
+    (d - radius) * (d + radius)
+}
+
+/// [`distance_to_sphere`] with the point's [`sphere_power`] given, for the
+/// feelers of one point, which share it.
+#[inline]
+pub fn feeler_length(direction: DVec3, to_center: DVec3, radius: f64, power: f64) -> f64 {
     let b = direction.dot(to_center);
     let h2 = radius * radius - (to_center - b * direction).length_squared();
     if h2 <= 0.0 {
         return b;
     }
-    let d = to_center.length();
-    (d - radius) * (d + radius) / (b + h2.sqrt())
+    power / (b + h2.sqrt())
 }
 
 #[cfg(test)]
