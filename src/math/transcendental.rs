@@ -13,96 +13,10 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
     libm::sincos(x)
 }
 
-/// sin 2πt and cos 2πt for t in [0, 1) turns, without libm's argument
-/// reduction (a tenth of a soft-shadow render went to sincos for the
-/// feelers' azimuths): the quadrant and the octant within it come from t
-/// exactly (4t and 1 − f are exact), and the angle left, at most π/4, goes
-/// through the Taylor series to x¹⁵ and x¹⁶ (truncation below 5·10⁻¹⁷) by
-/// Horner's rule. Plain multiplies and adds in a fixed order: the same bits
-/// on every CPU, within a few units in the last place of sin and cos.
-#[inline]
-pub fn sin_cos_turns(t: f64) -> (f64, f64) {
-    // t ≥ 0, so truncation is the floor (and, unlike floor, one
-    // instruction on baseline x86-64).
-    let quarters = 4.0 * t;
-    let quadrant = quarters as i64;
-    let f = quarters - quadrant as f64;
-    // The angle into the quadrant is f·π/2; past its middle, use the
-    // complement (1 − f)·π/2 with sine and cosine swapped.
-    let (x, swap) = if f <= 0.5 {
-        (f * std::f64::consts::FRAC_PI_2, false)
-    } else {
-        ((1.0 - f) * std::f64::consts::FRAC_PI_2, true)
-    };
-    let x2 = x * x;
-    // sin x = x(1 − x²/3!(1 − x²/(4·5)(1 − …))) written with 1/n! constants.
-    let sin = x
-        * (1.0
-            + x2 * (-1.0 / 6.0
-                + x2 * (1.0 / 120.0
-                    + x2 * (-1.0 / 5040.0
-                        + x2 * (1.0 / 362_880.0
-                            + x2 * (-1.0 / 39_916_800.0
-                                + x2 * (1.0 / 6_227_020_800.0
-                                    + x2 * (-1.0 / 1_307_674_368_000.0))))))));
-    let cos = 1.0
-        + x2 * (-0.5
-            + x2 * (1.0 / 24.0
-                + x2 * (-1.0 / 720.0
-                    + x2 * (1.0 / 40_320.0
-                        + x2 * (-1.0 / 3_628_800.0
-                            + x2 * (1.0 / 479_001_600.0
-                                + x2 * (-1.0 / 87_178_291_200.0
-                                    + x2 * (1.0 / 20_922_789_888_000.0))))))));
-    let (s, c) = if swap { (cos, sin) } else { (sin, cos) };
-    // Turn by whole quadrants: exact sign changes and swaps.
-    match quadrant & 3 {
-        0 => (s, c),
-        1 => (c, -s),
-        2 => (-s, -c),
-        _ => (-c, s),
-    }
-}
-
 /// x to the power y.
 #[inline]
 pub fn pow(x: f64, y: f64) -> f64 {
     libm::pow(x, y)
-}
-
-/// x to a whole power n, by repeated squaring: about log₂ n multiplies
-/// instead of libm's pow (a quarter of a soft-shadow render was pow for the
-/// Phong highlight, whose exponent is usually whole). Plain multiplies in a
-/// fixed order, so every CPU gets the same bits; each of the at most
-/// 2·log₂ n roundings adds one relative error of 2⁻⁵³ (doubled by each
-/// squaring after it), so the result is within about 2n units in the last
-/// place of xⁿ: 240 for n = 120, 3·10⁻¹⁴ relative.
-#[inline]
-pub fn powi(x: f64, n: u32) -> f64 {
-    let mut result = 1.0;
-    let mut base = x;
-    let mut n = n;
-    while n > 0 {
-        if n & 1 == 1 {
-            result *= base;
-        }
-        n >>= 1;
-        if n > 0 {
-            base *= base;
-        }
-    }
-    result
-}
-
-/// x to the power y ≥ 0: [`powi`] where y is a whole number up to 4096,
-/// else [`pow`].
-#[inline]
-pub fn pow_whole_fast(x: f64, y: f64) -> f64 {
-    if (0.0..=4096.0).contains(&y) && y == f64::from(y as u32) {
-        powi(x, y as u32)
-    } else {
-        pow(x, y)
-    }
 }
 
 /// tan x.
@@ -146,67 +60,7 @@ mod tests {
         }
         // Hand-worked values.
         assert_eq!(pow(2.0, 10.0), 1024.0);
-        assert_eq!(powi(2.0, 10), 1024.0);
-        assert_eq!(powi(-3.0, 3), -27.0);
-        assert_eq!(powi(0.5, 0), 1.0);
-        assert_eq!(powi(0.0, 5), 0.0);
-        assert_eq!(pow_whole_fast(1.5, 2.5), pow(1.5, 2.5));
-        assert_eq!(sin_cos_turns(0.0), (0.0, 1.0));
-        assert_eq!(sin_cos_turns(0.25), (1.0, 0.0));
-        assert_eq!(sin_cos_turns(0.5), (0.0, -1.0));
-        assert_eq!(sin_cos_turns(0.75), (-1.0, 0.0));
-        let (s, c) = sin_cos_turns(0.125);
-        assert!((s - std::f64::consts::FRAC_1_SQRT_2).abs() <= f64::EPSILON);
-        assert!((c - std::f64::consts::FRAC_1_SQRT_2).abs() <= f64::EPSILON);
         assert_eq!(sin_cos(0.0), (0.0, 1.0));
         assert_eq!(atan2(1.0, 0.0), std::f64::consts::FRAC_PI_2);
-    }
-
-    /// Whole powers by squaring against libm's pow: within 2n ulps, for
-    /// every exponent of a Phong highlight and bases over (0, 1].
-    #[test]
-    fn powi_is_within_its_bound_of_pow() {
-        let mut rng = super::super::rng::PixelRng::new(7, 0, 0);
-        for n in 0..=300u32 {
-            for _ in 0..200 {
-                let x = rng.uniform().max(1e-3);
-                let (fast, exact) = (powi(x, n), pow(x, f64::from(n)));
-                let bound = (2.0 * f64::from(n) + 1.0) * f64::EPSILON * exact;
-                assert!(
-                    (fast - exact).abs() <= bound,
-                    "{x}^{n}: {fast} against {exact}"
-                );
-                assert_eq!(pow_whole_fast(x, f64::from(n)), fast);
-            }
-        }
-    }
-
-    /// The azimuth's sine and cosine against libm's on the angle 2πt:
-    /// within 4 ulps of 1 everywhere (a few ulps of the larger of the two),
-    /// including right at the octant and quadrant seams.
-    #[test]
-    fn sin_cos_turns_matches_sin_cos() {
-        let mut rng = super::super::rng::PixelRng::new(8, 0, 0);
-        let seams = (0..=16).map(|k| k as f64 / 16.0);
-        let near = (1..=16).flat_map(|k| {
-            let t = k as f64 / 16.0;
-            [t - 1e-12, t - f64::EPSILON, (t + 1e-12).min(0.999_999)]
-        });
-        let random = (0..100_000).map(|_| rng.uniform());
-        for t in seams
-            .chain(near)
-            .chain(random)
-            .filter(|t| (0.0..1.0).contains(t))
-        {
-            let (s, c) = sin_cos_turns(t);
-            let (ls, lc) = sin_cos(std::f64::consts::TAU * t);
-            // 2πt itself is rounded: up to an ulp of 2π·t in angle.
-            let tol = 4.0 * f64::EPSILON + 2.0 * f64::EPSILON * std::f64::consts::TAU * t;
-            assert!(
-                (s - ls).abs() <= tol && (c - lc).abs() <= tol,
-                "{t}: {s} {c} against {ls} {lc}"
-            );
-            assert!((s * s + c * c - 1.0).abs() <= 4.0 * f64::EPSILON, "{t}");
-        }
     }
 }

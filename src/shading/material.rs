@@ -109,14 +109,7 @@ impl Material {
                 Highlight::Phong => reflect(-l, n).dot(view),
                 Highlight::Blinn => n.dot((l + view).normalize()),
             };
-            let highlight = highlight.max(0.0);
-            if highlight == 0.0 && self.shininess > 0.0 {
-                // pow(0, n) = 0 for n > 0: the same value without libm's
-                // pow, which was a quarter of a soft-shadow render.
-                0.0
-            } else {
-                self.ks * transcendental::pow_whole_fast(highlight, self.shininess)
-            }
+            self.ks * transcendental::pow(highlight.max(0.0), self.shininess)
         } else {
             0.0
         };
