@@ -265,10 +265,10 @@ pub fn stack_need(wide: &[WideNode]) -> usize {
 
 /// Closest-hit traversal over wide nodes; see `Bvh::closest`.
 ///
-/// The children a node's test lets through are pushed far to near, so the
-/// nearest is taken first; one lone interior child is gone into without a
-/// push. An entry further than the closest hit found meanwhile is dropped
-/// when popped.
+/// Of the children a node's test lets through, the nearest is taken at
+/// once and the others pushed far to near, so they come back nearest first.
+/// An entry further than the closest hit found meanwhile is dropped when
+/// popped.
 #[inline(always)]
 pub fn closest<L: Lanes>(
     lanes: L,
@@ -285,26 +285,46 @@ pub fn closest<L: Lanes>(
     let mut current = 0usize;
     loop {
         let node = &wide[current];
-        let (mut mask, near) = lanes.entries(node, ray, limit);
-        if mask.count_ones() == 1 && node.count[mask.trailing_zeros() as usize] == 0 {
-            current = node.child[mask.trailing_zeros() as usize] as usize;
-            continue;
-        }
-        // Insert each child at its place among those pushed for this node
-        // (far at the bottom, near on top).
-        let base = stack.len();
-        while mask != 0 {
-            let lane = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
-            stack.push(StackEntry {
-                index: node.child[lane],
-                count: node.count[lane].into(),
-                entry: near[lane],
-            });
-            let mut k = stack.len() - 1;
-            while k > base && stack[k - 1].entry < stack[k].entry {
-                stack.swap(k - 1, k);
-                k -= 1;
+        let (mask, near) = lanes.entries(node, ray, limit);
+        if mask != 0 {
+            // The nearest child is taken at once; the others go on the
+            // stack, each inserted at its place (far at the bottom, near on
+            // top), so they come back nearest first.
+            let mut first = mask.trailing_zeros() as usize;
+            let mut scan = mask & (mask - 1);
+            while scan != 0 {
+                let lane = scan.trailing_zeros() as usize;
+                scan &= scan - 1;
+                if near[lane] < near[first] {
+                    first = lane;
+                }
+            }
+            let mut rest = mask & !(1 << first);
+            let base = stack.len();
+            while rest != 0 {
+                let lane = rest.trailing_zeros() as usize;
+                rest &= rest - 1;
+                stack.push(StackEntry {
+                    index: node.child[lane],
+                    count: node.count[lane].into(),
+                    entry: near[lane],
+                });
+                let mut k = stack.len() - 1;
+                while k > base && stack[k - 1].entry < stack[k].entry {
+                    stack.swap(k - 1, k);
+                    k -= 1;
+                }
+            }
+            let (child, count) = (node.child[first] as usize, node.count[first] as usize);
+            if count == 0 {
+                current = child;
+                continue;
+            }
+            for position in child..child + count {
+                if let Some(t) = leaf.test(position, t_max) {
+                    t_max = t;
+                    limit = NodeRay::box_limit(t_max);
+                }
             }
         }
         // Pop until an interior node to visit; leaves are tested on the way.
