@@ -10,9 +10,12 @@ threaded and on all threads; then Embree builds and traces the very same
 rays (embreex traces on one thread, so the single-threaded ratio is the
 like-for-like one). Prints one table with Prism/Embree ratios, and the
 obvhs crate's compressed wide BVH on the same rays (one thread), the
-candidate replacement for Prism's own BVH.
+candidate replacement for Prism's own BVH, and Mitsuba 3 (its LLVM variant,
+one thread: closest hits and any-hit `ray_test`) where it can run.
 
-Set-up: none; the script makes bench/.venv (embreex, numpy) on first run.
+Set-up: none; the script makes bench/.venv (embreex, numpy) on first run,
+and adds mitsuba to it (its LLVM variant needs Debian's libllvm; without it
+the Mitsuba rows say why they are missing).
 Usage: python3 bench/meshes.py [--incoherent N]
        MESHBENCH=path/to/meshbench python3 bench/meshes.py  (time that binary,
        e.g. a saved build of an earlier commit, instead of building this tree's)
@@ -88,6 +91,40 @@ def load_rays(path):
     return np.ascontiguousarray(r[:, :3]), np.ascontiguousarray(r[:, 3:6]), np.ascontiguousarray(r[:, 6])
 
 
+def mitsuba_rates(triangles, rays):
+    """Mitsuba 3's single-threaded Mrays/s on the same triangles and rays:
+    (primary closest hits, shadow any hits, their hit counts), or a reason."""
+    try:
+        subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--disable-pip-version-check", "mitsuba"],
+                       check=True, capture_output=True)
+        import drjit as dr
+        import mitsuba as mi
+        mi.set_variant("llvm_ad_rgb")
+    except Exception as e:  # noqa: BLE001 - any failure means "not measured", with the reason
+        return str(e).splitlines()[0] if str(e) else type(e).__name__
+    dr.set_thread_count(1)
+    n = len(triangles)
+    v = triangles.reshape(-1, 3)
+    mesh = mi.Mesh("m", vertex_count=3 * n, face_count=n, has_vertex_normals=False, has_vertex_texcoords=False)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = dr.ravel(mi.Point3f(v[:, 0], v[:, 1], v[:, 2]))
+    params["faces"] = mi.UInt32(np.arange(3 * n, dtype=np.uint32))
+    params.update()
+    scene = mi.load_dict({"type": "scene", "m": mesh})
+    out = {}
+    for kind in ("primary", "shadow"):
+        o, d, t = rays[kind]
+        ray = mi.Ray3f(mi.Point3f(o[:, 0], o[:, 1], o[:, 2]), mi.Vector3f(d[:, 0], d[:, 1], d[:, 2]))
+        ray.maxt = mi.Float(np.minimum(t, 3e38))
+        if kind == "shadow":
+            run = lambda: int(dr.count(scene.ray_test(ray)).numpy()[0])  # noqa: E731
+        else:
+            run = lambda: int(dr.count(scene.ray_intersect_preliminary(ray).is_valid()).numpy()[0])  # noqa: E731
+        secs, hits = best_of_3(run)
+        out[kind] = (len(o) / secs / 1e6, hits)
+    return out
+
+
 def best_of_3(run):
     best, out = float("inf"), None
     for _ in range(3):
@@ -106,7 +143,7 @@ def main():
     if not exe:
         subprocess.run(["cargo", "build", "--release", "--quiet", "--example", "meshbench"], cwd=ROOT, check=True)
         exe = os.path.join(ROOT, "target", "release", "examples", "meshbench")
-    rows = []
+    rows, notes = [], []
     for name, path in [("bunny", bunny()), ("terrain 1M", terrain())]:
         with tempfile.TemporaryDirectory() as out:
             prism = json.loads(subprocess.run([exe, path, out, str(args.incoherent)], check=True,
@@ -122,6 +159,13 @@ def main():
         ob = prism["obvhs"]
         rows.append((name, "obvhs CWBVH8 build s / primary / shadow", ob["build_s"], ob["primary_mrays_1"],
                      ob["shadow_mrays_1"], None))
+        mi = mitsuba_rates(triangles, rays)
+        if isinstance(mi, dict):
+            notes.append(f"{name}: Mitsuba 3 (llvm_ad_rgb, 1 thread): " + ", ".join(
+                f"{kind} {mi[kind][0]:.3f} Mrays/s (Prism/Mitsuba {prism[kind]['mrays_1'] / mi[kind][0]:.2f}x, "
+                f"hits {mi[kind][1]} vs {prism[kind]['hits']})" for kind in ("primary", "shadow")))
+        else:
+            notes.append(f"{name}: Mitsuba 3 not measured: {mi}")
         rows.append((name, "build s (Prism load+build / Embree)", prism["load_s"] + prism["build_s"], None, embree_build, None))
         rows.append((name, "Prism mesh MB / peak RSS MB", prism["mesh_mb"], prism["peak_rss_mb"], None, None))
         for kind in ("primary", "incoherent", "shadow"):
@@ -142,6 +186,8 @@ def main():
         fmt = lambda v: f"{v:>10.3f}" if isinstance(v, float) else (f"{v:>10}" if v is not None else " " * 10)
         r = f"{ratio[0]:>12.2f}x {str(ratio[1]):>10}" if ratio else ""
         print(f"{name:<11} {what:<38} {fmt(a)} {fmt(b)} {fmt(e)} {r}")
+    for note in notes:
+        print(note)
 
 
 if __name__ == "__main__":
