@@ -304,6 +304,11 @@ pub fn closest<L: Lanes>(
             while rest != 0 {
                 let lane = rest.trailing_zeros() as usize;
                 rest &= rest - 1;
+                // Its node is visited after the nearest child's subtree:
+                // time enough for the cache to fetch it.
+                if node.count[lane] == 0 {
+                    lanes.prefetch(&wide[node.child[lane] as usize]);
+                }
                 stack.push(StackEntry {
                     index: node.child[lane],
                     count: node.count[lane].into(),

@@ -203,6 +203,10 @@ impl NodeRay {
 /// implementation computes, lane by lane, exactly [`Scalar`]'s operations.
 pub(crate) trait Lanes: Copy {
     fn entries(self, node: &WideNode, ray: &NodeRay, limit: f32) -> (u32, [f32; WIDTH]);
+
+    /// Asks the cache for a node that will be visited later (a hint only).
+    #[inline(always)]
+    fn prefetch(self, _node: &WideNode) {}
 }
 
 /// `a > b ? a : b` and `a < b ? a : b`: the SSE and AVX max and min, to the
