@@ -45,11 +45,6 @@ impl SimdPath {
         }
     }
 
-    /// Whether this CPU can run the path.
-    pub fn available(self) -> bool {
-        self.kernel().is_some()
-    }
-
     /// The kernel of the path, if this CPU can run it.
     pub(crate) fn kernel(self) -> Option<Kernel> {
         match self {
