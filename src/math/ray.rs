@@ -59,9 +59,72 @@ pub fn offset_origin(point: DVec3, normal: DVec3, direction: DVec3) -> DVec3 {
     }
 }
 
+/// The two origins [`Ray::spawn`] can give rays leaving one surface point
+/// (lifted to the front or to the back of the surface), each with its
+/// distance from the point: worked out once for the many shadow feelers
+/// of a point instead of once per feeler, with the same bits.
+#[derive(Clone, Copy, Debug)]
+pub struct SpawnOrigins {
+    normal: DVec3,
+    front: (DVec3, f64),
+    back: (DVec3, f64),
+}
+
+impl SpawnOrigins {
+    /// The origins of rays leaving `point` on the surface with geometric
+    /// normal `normal`.
+    #[inline]
+    pub fn new(point: DVec3, normal: DVec3) -> Self {
+        let lifted = |side: DVec3| {
+            let origin = offset_origin(point, normal, side);
+            (origin, (origin - point).length())
+        };
+        SpawnOrigins {
+            normal,
+            front: lifted(normal),
+            back: lifted(-normal),
+        }
+    }
+
+    /// [`Ray::spawn`] from the point in `direction`, and how far its
+    /// origin lies from the point.
+    #[inline]
+    pub fn spawn(&self, direction: DVec3) -> (Ray, f64) {
+        // The side test of `offset_origin`.
+        let (origin, gap) = if direction.dot(self.normal) >= 0.0 {
+            self.front
+        } else {
+            self.back
+        };
+        (Ray { origin, direction }, gap)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn spawn_origins_are_those_of_ray_spawn() {
+        let mut rng = super::super::rng::PixelRng::new(5, 0, 0);
+        let mut u = || 2.0 * rng.uniform() - 1.0;
+        for _ in 0..10_000 {
+            let point = DVec3::new(u(), u(), u()) * 1e3 * u().abs();
+            let normal = DVec3::new(u(), u(), u()).normalize();
+            let origins = SpawnOrigins::new(point, normal);
+            let direction = DVec3::new(u(), u(), u()).normalize();
+            let (ray, gap) = origins.spawn(direction);
+            let expected = Ray::spawn(point, normal, direction);
+            assert_eq!(ray, expected);
+            assert_eq!(gap, (expected.origin - point).length());
+        }
+        // A degenerate normal too (both sides coincide).
+        let origins = SpawnOrigins::new(DVec3::ONE, DVec3::ZERO);
+        assert_eq!(
+            origins.spawn(DVec3::X).0,
+            Ray::spawn(DVec3::ONE, DVec3::ZERO, DVec3::X)
+        );
+    }
 
     #[test]
     fn at_follows_the_ray_equation() {

@@ -12,7 +12,7 @@ use super::transcendental;
 /// The square is cut into `rows = ⌊√n⌋` rows of equal height; the first
 /// `n mod rows` rows get one extra column, so there are exactly `n` cells of
 /// nearly equal area (equal when `n` is a perfect square).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Strata {
     n: usize,
     rows: usize,
@@ -20,6 +20,11 @@ pub struct Strata {
     base: usize,
     /// Rows with one more column.
     extra: usize,
+    /// 1/rows, 1/base and 1/(base + 1): the cell sizes, divided out once
+    /// rather than per point (the same bits).
+    row_height: f64,
+    base_width: f64,
+    wide_width: f64,
 }
 
 impl Strata {
@@ -27,11 +32,15 @@ impl Strata {
     pub fn new(n: usize) -> Self {
         let n = n.max(1);
         let rows = (n as f64).sqrt().floor().max(1.0) as usize;
+        let base = n / rows;
         Strata {
             n,
             rows,
-            base: n / rows,
+            base,
             extra: n % rows,
+            row_height: 1.0 / rows as f64,
+            base_width: 1.0 / base as f64,
+            wide_width: 1.0 / (base + 1) as f64,
         }
     }
 
@@ -50,13 +59,13 @@ impl Strata {
         debug_assert!(i < self.n);
         let wide = self.base + 1;
         // Rows 0..extra hold base + 1 cells, the rest base cells.
-        let (row, col, cols) = if i < self.extra * wide {
-            (i / wide, i % wide, wide)
+        let (row, col, width) = if i < self.extra * wide {
+            (i / wide, i % wide, self.wide_width)
         } else {
             let j = i - self.extra * wide;
-            (self.extra + j / self.base, j % self.base, self.base)
+            (self.extra + j / self.base, j % self.base, self.base_width)
         };
-        let size = DVec2::new(1.0 / cols as f64, 1.0 / self.rows as f64);
+        let size = DVec2::new(width, self.row_height);
         (DVec2::new(col as f64, row as f64) * size, size)
     }
 

@@ -5,6 +5,7 @@
 //! with shadow feelers for visⱼ, a reflected ray R = I − 2N(I·N), a
 //! refracted ray by Snell's law, both followed recursively.
 
+use arrayvec::ArrayVec;
 use glam::DVec3;
 
 use super::optics::{fresnel_dielectric, reflect, refract, schlick};
@@ -13,6 +14,7 @@ use crate::accel::{Blocker, ShadowCandidates};
 use crate::geometry::Hit;
 use crate::lights::{Light, LightSample};
 use crate::math::Ray;
+use crate::math::ray::SpawnOrigins;
 use crate::math::rng::PixelRng;
 use crate::scene::Scene;
 use crate::stats::RayStats;
@@ -20,6 +22,9 @@ use crate::stats::RayStats;
 /// From this many feelers to a sphere light on, the scene is culled
 /// against their hull first (below, the BVH query alone is cheaper).
 const CULL_FROM: usize = 4;
+
+/// How many feeler directions are drawn ahead of tracing them.
+const FEELER_BATCH: usize = 16;
 
 /// Nested media deeper than this are not tracked (the innermost are lost).
 const MAX_NESTING: usize = 8;
@@ -414,21 +419,31 @@ impl<'a> Whitted<'a> {
             }
             _ => None,
         };
+        let origins = SpawnOrigins::new(point.hit.point, point.hit.normal);
         let mut sum = DVec3::ZERO;
-        for i in 0..count {
-            let sample = sampler.sample(i, rng);
-            if point.n.dot(sample.direction) <= 0.0 {
-                // The light is behind the surface: no feeler needed.
-                continue;
-            }
-            let visibility = self.visibility(&point.hit, &sample, candidates.as_mut(), stats);
-            rec.feeler(index, sample.direction, sample.falloff, visibility);
-            if visibility != DVec3::ZERO {
-                sum += visibility
-                    * sample.falloff
-                    * point
-                        .material
-                        .phong(point.od, point.n, sample.direction, point.view);
+        let mut batch = ArrayVec::<LightSample, FEELER_BATCH>::new();
+        for start in (0..count).step_by(FEELER_BATCH) {
+            // Draw a batch of directions first, then trace them: each
+            // direction is a chain of dependent square roots, a sincos and
+            // a division, and drawn together these chains overlap, where
+            // drawn one per feeler each waited for the last. The draws and
+            // the sum keep their order, so the bits are the same.
+            batch.clear();
+            batch.extend((start..count.min(start + FEELER_BATCH)).map(|i| sampler.sample(i, rng)));
+            for sample in &batch {
+                if point.n.dot(sample.direction) <= 0.0 {
+                    // The light is behind the surface: no feeler needed.
+                    continue;
+                }
+                let visibility = self.visibility(&origins, sample, candidates.as_mut(), stats);
+                rec.feeler(index, sample.direction, sample.falloff, visibility);
+                if visibility != DVec3::ZERO {
+                    sum += visibility
+                        * sample.falloff
+                        * point
+                            .material
+                            .phong(point.od, point.n, sample.direction, point.view);
+                }
             }
         }
         let contribution = light.radiance * sum / count as f64;
@@ -442,13 +457,13 @@ impl<'a> Whitted<'a> {
     /// passes its kt (so tinted glass casts a tinted shadow).
     fn visibility(
         &self,
-        hit: &Hit,
+        origins: &SpawnOrigins,
         sample: &LightSample,
         mut candidates: Option<&mut ShadowCandidates>,
         stats: &mut RayStats,
     ) -> DVec3 {
-        let mut feeler = Ray::spawn(hit.point, hit.normal, sample.direction);
-        let mut remaining = sample.distance - (feeler.origin - hit.point).length();
+        let (mut feeler, gap) = origins.spawn(sample.direction);
+        let mut remaining = sample.distance - gap;
         if !self.scene.transparent_shadows {
             stats.shadow += 1;
             let blocked = match candidates.as_mut() {
