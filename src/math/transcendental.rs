@@ -19,6 +19,42 @@ pub fn pow(x: f64, y: f64) -> f64 {
     libm::pow(x, y)
 }
 
+/// x to a whole power n, by repeated squaring: about log₂ n multiplies
+/// instead of libm's pow (a fifth of the Whitted benchmark scene with a
+/// 64-feeler light was pow for the Phong highlight, whose exponent is
+/// usually whole). Plain multiplies in a
+/// fixed order, so every CPU gets the same bits; each of the at most
+/// 2·log₂ n roundings adds one relative error of 2⁻⁵³ (doubled by each
+/// squaring after it), so the result is within about 2n units in the last
+/// place of xⁿ: 240 for n = 120, 3·10⁻¹⁴ relative.
+#[inline]
+pub fn powi(x: f64, n: u32) -> f64 {
+    let mut result = 1.0;
+    let mut base = x;
+    let mut n = n;
+    while n > 0 {
+        if n & 1 == 1 {
+            result *= base;
+        }
+        n >>= 1;
+        if n > 0 {
+            base *= base;
+        }
+    }
+    result
+}
+
+/// x to the power y ≥ 0: [`powi`] where y is a whole number up to 4096,
+/// else [`pow`].
+#[inline]
+pub fn pow_whole_fast(x: f64, y: f64) -> f64 {
+    if (0.0..=4096.0).contains(&y) && y == f64::from(y as u32) {
+        powi(x, y as u32)
+    } else {
+        pow(x, y)
+    }
+}
+
 /// tan x.
 #[inline]
 pub fn tan(x: f64) -> f64 {
@@ -60,7 +96,31 @@ mod tests {
         }
         // Hand-worked values.
         assert_eq!(pow(2.0, 10.0), 1024.0);
+        assert_eq!(powi(2.0, 10), 1024.0);
+        assert_eq!(powi(-3.0, 3), -27.0);
+        assert_eq!(powi(0.5, 0), 1.0);
+        assert_eq!(powi(0.0, 5), 0.0);
+        assert_eq!(pow_whole_fast(1.5, 2.5), pow(1.5, 2.5));
         assert_eq!(sin_cos(0.0), (0.0, 1.0));
         assert_eq!(atan2(1.0, 0.0), std::f64::consts::FRAC_PI_2);
+    }
+
+    /// Whole powers by squaring against libm's pow: within 2n ulps, for
+    /// every exponent of a Phong highlight and bases over (0, 1].
+    #[test]
+    fn powi_is_within_its_bound_of_pow() {
+        let mut rng = super::super::rng::PixelRng::new(7, 0, 0);
+        for n in 0..=300u32 {
+            for _ in 0..200 {
+                let x = rng.uniform().max(1e-3);
+                let (fast, exact) = (powi(x, n), pow(x, f64::from(n)));
+                let bound = (2.0 * f64::from(n) + 1.0) * f64::EPSILON * exact;
+                assert!(
+                    (fast - exact).abs() <= bound,
+                    "{x}^{n}: {fast} against {exact}"
+                );
+                assert_eq!(pow_whole_fast(x, f64::from(n)), fast);
+            }
+        }
     }
 }

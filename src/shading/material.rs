@@ -109,7 +109,14 @@ impl Material {
                 Highlight::Phong => reflect(-l, n).dot(view),
                 Highlight::Blinn => n.dot((l + view).normalize()),
             };
-            self.ks * transcendental::pow(highlight.max(0.0), self.shininess)
+            let highlight = highlight.max(0.0);
+            if highlight == 0.0 && self.shininess > 0.0 {
+                // pow(0, n) = 0 for n > 0: no power to work out (a feeler
+                // per sample makes this the hottest arithmetic of a render).
+                0.0
+            } else {
+                self.ks * transcendental::pow_whole_fast(highlight, self.shininess)
+            }
         } else {
             0.0
         };
