@@ -85,7 +85,7 @@ impl Strata {
 pub fn uniform_cone(frame: &Frame, cos_theta_max: f64, u: DVec2) -> DVec3 {
     let cos_theta = 1.0 - u.x * (1.0 - cos_theta_max);
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-    let (sin_phi, cos_phi) = transcendental::sin_cos(std::f64::consts::TAU * u.y);
+    let (sin_phi, cos_phi) = transcendental::sin_cos_turns(u.y);
     frame.to_world(DVec3::new(
         sin_theta * cos_phi,
         sin_theta * sin_phi,

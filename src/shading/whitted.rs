@@ -12,7 +12,7 @@ use super::optics::{fresnel_dielectric, reflect, refract, schlick};
 use super::{Fresnel, Material};
 use crate::accel::{Blocker, ShadowCandidates};
 use crate::geometry::Hit;
-use crate::lights::{Light, LightSample};
+use crate::lights::{Light, LightSample, SAMPLE_BATCH};
 use crate::math::Ray;
 use crate::math::ray::SpawnOrigins;
 use crate::math::rng::PixelRng;
@@ -22,9 +22,6 @@ use crate::stats::RayStats;
 /// From this many feelers to a sphere light on, the scene is culled
 /// against their hull first (below, the BVH query alone is cheaper).
 const CULL_FROM: usize = 4;
-
-/// How many feeler directions are drawn ahead of tracing them.
-const FEELER_BATCH: usize = 16;
 
 /// Nested media deeper than this are not tracked (the innermost are lost).
 const MAX_NESTING: usize = 8;
@@ -421,15 +418,11 @@ impl<'a> Whitted<'a> {
         };
         let origins = SpawnOrigins::new(point.hit.point, point.hit.normal);
         let mut sum = DVec3::ZERO;
-        let mut batch = ArrayVec::<LightSample, FEELER_BATCH>::new();
-        for start in (0..count).step_by(FEELER_BATCH) {
-            // Draw a batch of directions first, then trace them: each
-            // direction is a chain of dependent square roots, a sincos and
-            // a division, and drawn together these chains overlap, where
-            // drawn one per feeler each waited for the last. The draws and
-            // the sum keep their order, so the bits are the same.
-            batch.clear();
-            batch.extend((start..count.min(start + FEELER_BATCH)).map(|i| sampler.sample(i, rng)));
+        let mut batch = ArrayVec::<LightSample, SAMPLE_BATCH>::new();
+        for start in (0..count).step_by(SAMPLE_BATCH) {
+            // Draw a batch of directions first (vector code), then trace
+            // them; the draws and the sum keep their order.
+            sampler.sample_batch(start, rng, &mut batch);
             for sample in &batch {
                 if point.n.dot(sample.direction) <= 0.0 {
                     // The light is behind the surface: no feeler needed.
