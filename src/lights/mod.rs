@@ -7,7 +7,8 @@ use glam::{DVec2, DVec3};
 
 use crate::math::Frame;
 use crate::math::rng::PixelRng;
-use crate::math::sampling::{Strata, uniform_cone};
+use crate::math::sampling::{Strata, cone_direction, cone_polar, uniform_cone};
+use crate::math::transcendental::sin_cos_turns;
 
 /// How many samples [`LightSampler::sample_batch`] draws at once.
 pub const SAMPLE_BATCH: usize = 16;
@@ -254,15 +255,28 @@ impl LightSampler {
                     *u = strata.point(first + k, rng);
                 }
                 // Structure of arrays, every lane computed (the unused ones
-                // from u = 0), so the loop has a fixed count and no branch.
-                let mut x = [0.0; SAMPLE_BATCH];
-                let mut y = [0.0; SAMPLE_BATCH];
-                let mut z = [0.0; SAMPLE_BATCH];
-                let mut distance = [0.0; SAMPLE_BATCH];
-                for k in 0..SAMPLE_BATCH {
-                    let d = uniform_cone(&frame, cos_max, u[k]);
-                    distance[k] = feeler_length(d, to_center, radius, power);
+                // from u = 0), so each loop has a fixed count and no branch;
+                // one loop per stage of `uniform_cone` and `feeler_length`,
+                // so each has short chains that overlap across the batch.
+                const N: usize = SAMPLE_BATCH;
+                let (mut sin_phi, mut cos_phi) = ([0.0; N], [0.0; N]);
+                for k in 0..N {
+                    (sin_phi[k], cos_phi[k]) = sin_cos_turns(u[k].y);
+                }
+                let (mut sin_theta, mut cos_theta) = ([0.0; N], [0.0; N]);
+                for k in 0..N {
+                    (sin_theta[k], cos_theta[k]) = cone_polar(cos_max, u[k].x);
+                }
+                let (mut x, mut y, mut z) = ([0.0; N], [0.0; N], [0.0; N]);
+                for k in 0..N {
+                    let d =
+                        cone_direction(&frame, sin_theta[k], cos_theta[k], sin_phi[k], cos_phi[k]);
                     (x[k], y[k], z[k]) = (d.x, d.y, d.z);
+                }
+                let mut distance = [0.0; N];
+                for k in 0..N {
+                    let d = DVec3::new(x[k], y[k], z[k]);
+                    distance[k] = feeler_length(d, to_center, radius, power);
                 }
                 out.extend((0..wanted).map(|k| LightSample {
                     direction: DVec3::new(x[k], y[k], z[k]),

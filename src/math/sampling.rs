@@ -83,9 +83,27 @@ impl Strata {
 /// equal solid angles of the light.
 #[inline]
 pub fn uniform_cone(frame: &Frame, cos_theta_max: f64, u: DVec2) -> DVec3 {
-    let cos_theta = 1.0 - u.x * (1.0 - cos_theta_max);
-    let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+    let (sin_theta, cos_theta) = cone_polar(cos_theta_max, u.x);
     let (sin_phi, cos_phi) = transcendental::sin_cos_turns(u.y);
+    cone_direction(frame, sin_theta, cos_theta, sin_phi, cos_phi)
+}
+
+/// The polar angle θ of [`uniform_cone`] from `u_x`: (sin θ, cos θ).
+#[inline(always)]
+pub fn cone_polar(cos_theta_max: f64, u_x: f64) -> (f64, f64) {
+    let cos_theta = 1.0 - u_x * (1.0 - cos_theta_max);
+    ((1.0 - cos_theta * cos_theta).max(0.0).sqrt(), cos_theta)
+}
+
+/// The direction of [`uniform_cone`] from its polar and azimuthal angles.
+#[inline(always)]
+pub fn cone_direction(
+    frame: &Frame,
+    sin_theta: f64,
+    cos_theta: f64,
+    sin_phi: f64,
+    cos_phi: f64,
+) -> DVec3 {
     frame.to_world(DVec3::new(
         sin_theta * cos_phi,
         sin_theta * sin_phi,
