@@ -12,7 +12,7 @@ pub(crate) mod simd;
 mod wide;
 
 pub use primitive::{Primitive, Shape};
-pub use shadow::{Blocker, ShadowCandidates};
+pub use shadow::{Blocker, FeelerBatch, ShadowCandidates};
 pub use simd::{NodeRay, SimdPath, simd_path};
 
 use bvh::Bvh;

@@ -9,8 +9,9 @@
 
 use glam::DVec3;
 
-use super::{Aggregate, Shape};
+use super::{Aggregate, Shape, simd};
 use crate::geometry::Aabb;
+use crate::geometry::sphere::sphere_blocks;
 use crate::math::Ray;
 use crate::math::ray::RELATIVE_OFFSET;
 
@@ -242,6 +243,91 @@ impl ShadowCandidates {
     }
 }
 
+/// Shadow feelers of one shading point as a structure of arrays, for
+/// [`ShadowCandidates::any_hit_batch`]. Lanes switched off are ignored.
+#[derive(Clone, Copy, Debug)]
+pub struct FeelerBatch<const N: usize> {
+    /// Origin coordinates, x, y and z.
+    pub origin: [[f64; N]; 3],
+    /// Unit direction coordinates.
+    pub direction: [[f64; N]; 3],
+    /// How far each feeler reaches.
+    pub t_max: [f64; N],
+    /// Which lanes are feelers.
+    pub active: [bool; N],
+}
+
+impl<const N: usize> Default for FeelerBatch<N> {
+    fn default() -> Self {
+        FeelerBatch {
+            origin: [[0.0; N]; 3],
+            direction: [[0.0; N]; 3],
+            t_max: [0.0; N],
+            active: [false; N],
+        }
+    }
+}
+
+impl<const N: usize> FeelerBatch<N> {
+    fn ray(&self, k: usize) -> Ray {
+        let [x, y, z] = self.origin;
+        let [dx, dy, dz] = self.direction;
+        Ray {
+            origin: DVec3::new(x[k], y[k], z[k]),
+            direction: DVec3::new(dx[k], dy[k], dz[k]),
+        }
+    }
+}
+
+impl ShadowCandidates {
+    /// For each active lane of `feelers`, whether a candidate blocks it:
+    /// what [`any_hit`](Self::any_hit) answers feeler by feeler. Spheres,
+    /// what feelers to sphere lights mostly meet, are tested against every
+    /// lane at once by [`sphere_blocks`] (vector code, no early exit to
+    /// wait for); other shapes lane by lane, skipping blocked lanes.
+    pub fn any_hit_batch<const N: usize>(
+        &self,
+        aggregate: &Aggregate,
+        feelers: &FeelerBatch<N>,
+    ) -> [bool; N] {
+        simd::kernel().vectorize(|| self.any_hit_batch_here(aggregate, feelers))
+    }
+
+    /// [`any_hit_batch`](Self::any_hit_batch), compiled into its caller.
+    #[inline(always)]
+    fn any_hit_batch_here<const N: usize>(
+        &self,
+        aggregate: &Aggregate,
+        feelers: &FeelerBatch<N>,
+    ) -> [bool; N] {
+        let mut blocked = [false; N];
+        for &i in &self.primitives[..self.len] {
+            match &aggregate.primitives[i as usize].shape {
+                Shape::Sphere(s) => {
+                    let ([x, y, z], [dx, dy, dz]) = (&feelers.origin, &feelers.direction);
+                    for (k, blocked) in blocked.iter_mut().enumerate() {
+                        *blocked |= sphere_blocks(
+                            [x[k], y[k], z[k]],
+                            [dx[k], dy[k], dz[k]],
+                            feelers.t_max[k],
+                            s.center,
+                            s.radius,
+                        );
+                    }
+                }
+                shape => {
+                    for (k, blocked) in blocked.iter_mut().enumerate() {
+                        if feelers.active[k] && !*blocked {
+                            *blocked = shape.occludes(&feelers.ray(k), 0.0, feelers.t_max[k]);
+                        }
+                    }
+                }
+            }
+        }
+        blocked
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -311,6 +397,10 @@ mod tests {
             let frame = Frame::from_z(to_center / d2.sqrt());
             let cos_max = (1.0 - radius * radius / d2).sqrt();
             let strata = Strata::new(64);
+            // The feelers also go through the batched test, 16 at a time,
+            // with every fifth lane switched off.
+            let mut batch = FeelerBatch::<16>::default();
+            let mut expected = [false; 16];
             for i in 0..64 {
                 let direction = uniform_cone(&frame, cos_max, strata.point(i, &mut rng));
                 let distance = sphere_roots(DVec3::ZERO, direction, to_center, radius)
@@ -328,6 +418,20 @@ mod tests {
                 assert_eq!(candidates.nearest(&aggregate, &feeler, t_max), nearest);
                 compared += 1;
                 blocked += usize::from(full);
+                let lane = i % 16;
+                for axis in 0..3 {
+                    batch.origin[axis][lane] = feeler.origin[axis];
+                    batch.direction[axis][lane] = feeler.direction[axis];
+                }
+                batch.t_max[lane] = t_max;
+                batch.active[lane] = i % 5 != 0;
+                expected[lane] = full;
+                if lane == 15 {
+                    let got = candidates.any_hit_batch(&aggregate, &batch);
+                    for lane in (0..16).filter(|&l| batch.active[l]) {
+                        assert_eq!(got[lane], expected[lane], "{apex} feeler {lane}");
+                    }
+                }
             }
         }
         // The test means something: most points were culled to a few
@@ -337,6 +441,57 @@ mod tests {
             blocked > compared / 20 && blocked < compared * 19 / 20,
             "{blocked}/{compared}"
         );
+    }
+
+    /// A polygon half across the light's cone and a ball beside it: the
+    /// batched test answers as the full query does, lane by lane, through
+    /// both its sphere and its shape-by-shape paths.
+    #[test]
+    fn a_batch_answers_as_the_full_query_through_polygons_and_spheres() {
+        let quad = crate::geometry::Polygon::new(vec![
+            DVec3::new(-2.0, 2.0, -2.0),
+            DVec3::new(0.1, 2.0, -2.0),
+            DVec3::new(0.1, 2.2, 2.0),
+            DVec3::new(-2.0, 2.2, 2.0),
+        ])
+        .unwrap();
+        let aggregate = Aggregate::new(vec![
+            Primitive {
+                shape: Shape::Polygon(Box::new(quad)),
+                material: 0,
+            },
+            sphere(DVec3::new(0.5, 3.0, 0.3), 0.3),
+        ]);
+        let (apex, normal, to_center, radius) = (DVec3::ZERO, DVec3::Y, 5.0 * DVec3::Y, 1.0);
+        let candidates = aggregate
+            .shadow_candidates(apex, u32::MAX, to_center, radius, 64)
+            .unwrap();
+        assert_eq!(candidates.len(), 2);
+        let frame = Frame::from_z(DVec3::Y);
+        let cos_max = (1.0 - radius * radius / 25.0f64).sqrt();
+        let mut rng = PixelRng::new(2, 7, 1);
+        let mut blocked = 0;
+        for _ in 0..100 {
+            let mut batch = FeelerBatch::<16>::default();
+            let mut expected = [false; 16];
+            for (lane, expected) in expected.iter_mut().enumerate() {
+                let u = glam::DVec2::new(rng.uniform(), rng.uniform());
+                let direction = uniform_cone(&frame, cos_max, u);
+                let feeler = Ray::spawn(apex, normal, direction);
+                let t_max = crate::lights::distance_to_sphere(direction, to_center, radius);
+                for axis in 0..3 {
+                    batch.origin[axis][lane] = feeler.origin[axis];
+                    batch.direction[axis][lane] = direction[axis];
+                }
+                batch.t_max[lane] = t_max;
+                batch.active[lane] = true;
+                *expected = aggregate.any_hit(&feeler, t_max);
+            }
+            assert_eq!(candidates.any_hit_batch(&aggregate, &batch), expected);
+            blocked += expected.iter().filter(|&&b| b).count();
+        }
+        // Some feelers pass, some are blocked.
+        assert!(blocked > 200 && blocked < 1400, "{blocked}");
     }
 
     #[test]

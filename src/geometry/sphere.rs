@@ -47,6 +47,34 @@ pub fn sphere_roots(
     Some(if t0 <= t1 { (t0, t1) } else { (t1, t0) })
 }
 
+/// Whether the ray (origin, direction) meets the sphere with t in
+/// (0, t_max): the answer of [`sphere_roots`] and a root in that range, the
+/// same operations in the same order, but without a branch (every value is
+/// computed, the cases become masks), so that a loop over many rays
+/// compiles to vector code. Coordinates come one by one, as a structure of
+/// arrays hands them over.
+#[inline(always)]
+pub fn sphere_blocks(
+    [ox, oy, oz]: [f64; 3],
+    [dx, dy, dz]: [f64; 3],
+    t_max: f64,
+    center: DVec3,
+    radius: f64,
+) -> bool {
+    let (fx, fy, fz) = (ox - center.x, oy - center.y, oz - center.z);
+    let a = dx * dx + dy * dy + dz * dz;
+    let b = fx * dx + fy * dy + fz * dz;
+    let along = b / a;
+    let (px, py, pz) = (fx - along * dx, fy - along * dy, fz - along * dz);
+    let discriminant = a * (radius * radius - (px * px + py * py + pz * pz));
+    let c = fx * fx + fy * fy + fz * fz - radius * radius;
+    let q = -(b + discriminant.sqrt().copysign(b));
+    let (t0, t1) = (q / a, c / q);
+    // A root of 0 (q = 0, tangent at the origin) is not in (0, t_max).
+    let within = |t: f64| t > 0.0 && t < t_max;
+    (discriminant >= 0.0) & (q != 0.0) & (within(t0) | within(t1))
+}
+
 /// The nearest root in (t_min, t_max).
 #[inline]
 fn nearest_root((t0, t1): (f64, f64), t_min: f64, t_max: f64) -> Option<f64> {
@@ -137,6 +165,67 @@ mod tests {
     use glam::DAffine3;
 
     const INF: f64 = f64::INFINITY;
+
+    /// The branch-free test answers as `occludes` does, ray by ray: rays
+    /// from outside, inside and on the sphere, towards and away from it,
+    /// grazing it, with short and infinite reach.
+    #[test]
+    fn sphere_blocks_answers_as_occludes() {
+        let mut rng = PixelRng::new(21, 0, 0);
+        let mut u = || 2.0 * rng.uniform() - 1.0;
+        let mut blocked = 0;
+        for i in 0..200_000 {
+            let s = Sphere {
+                center: DVec3::new(u(), u(), u()) * 3.0,
+                radius: 0.1 + u().abs(),
+            };
+            let origin = match i % 4 {
+                // On the sphere (as a feeler from its own surface).
+                0 => s.center + DVec3::new(u(), u(), u()).normalize() * s.radius,
+                _ => DVec3::new(u(), u(), u()) * 4.0,
+            };
+            let aim = s.center + DVec3::new(u(), u(), u()) * s.radius * 1.2;
+            let direction = match i % 3 {
+                0 => (aim - origin).normalize(),
+                1 => DVec3::new(u(), u(), u()).normalize(),
+                // Not unit (a = |D|² ≠ 1).
+                _ => (aim - origin) * 0.37,
+            };
+            let t_max = match i % 5 {
+                0 => INF,
+                _ => u().abs() * 8.0,
+            };
+            let ray = Ray { origin, direction };
+            let expected = s.occludes(&ray, 0.0, t_max);
+            let got = sphere_blocks(
+                origin.to_array(),
+                direction.to_array(),
+                t_max,
+                s.center,
+                s.radius,
+            );
+            assert_eq!(got, expected, "{ray:?} {s:?} {t_max}");
+            blocked += expected as usize;
+        }
+        assert!(blocked > 40_000, "{blocked}");
+        // Tangent at the origin: q = 0, no root in (0, t_max).
+        let s = Sphere {
+            center: DVec3::Y,
+            radius: 1.0,
+        };
+        let ray = Ray {
+            origin: DVec3::ZERO,
+            direction: DVec3::X,
+        };
+        assert!(!s.occludes(&ray, 0.0, INF));
+        assert!(!sphere_blocks(
+            [0.0; 3],
+            [1.0, 0.0, 0.0],
+            INF,
+            s.center,
+            s.radius
+        ));
+    }
 
     #[test]
     fn hit_from_outside() {

@@ -5,6 +5,7 @@
 use arrayvec::ArrayVec;
 use glam::{DVec2, DVec3};
 
+use crate::accel::simd;
 use crate::math::Frame;
 use crate::math::rng::PixelRng;
 use crate::math::sampling::{Strata, cone_direction, cone_polar, uniform_cone};
@@ -232,6 +233,17 @@ impl LightSampler {
     /// turns into vector code, where one sample at a time was a chain of
     /// dependent latencies.
     pub fn sample_batch(
+        &self,
+        first: usize,
+        rng: &mut PixelRng,
+        out: &mut ArrayVec<LightSample, SAMPLE_BATCH>,
+    ) {
+        simd::kernel().vectorize(|| self.sample_batch_here(first, rng, out));
+    }
+
+    /// [`sample_batch`](Self::sample_batch), compiled into its caller.
+    #[inline(always)]
+    fn sample_batch_here(
         &self,
         first: usize,
         rng: &mut PixelRng,

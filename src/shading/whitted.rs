@@ -10,7 +10,7 @@ use glam::DVec3;
 
 use super::optics::{fresnel_dielectric, reflect, refract, schlick};
 use super::{Fresnel, Material};
-use crate::accel::{Blocker, ShadowCandidates};
+use crate::accel::{Blocker, FeelerBatch, ShadowCandidates};
 use crate::geometry::Hit;
 use crate::lights::{Light, LightSample, SAMPLE_BATCH};
 use crate::math::Ray;
@@ -423,12 +423,26 @@ impl<'a> Whitted<'a> {
             // Draw a batch of directions first (vector code), then trace
             // them; the draws and the sum keep their order.
             sampler.sample_batch(start, rng, &mut batch);
-            for sample in &batch {
+            // Opaque shadows against a few candidates: the whole batch of
+            // feelers at once.
+            let blocked = match candidates.as_ref() {
+                Some(c) if !self.scene.transparent_shadows => {
+                    Some(self.feelers_blocked(c, &origins, point.n, &batch))
+                }
+                _ => None,
+            };
+            for (k, sample) in batch.iter().enumerate() {
                 if point.n.dot(sample.direction) <= 0.0 {
                     // The light is behind the surface: no feeler needed.
                     continue;
                 }
-                let visibility = self.visibility(&origins, sample, candidates.as_mut(), stats);
+                let visibility = match &blocked {
+                    Some(blocked) => {
+                        stats.shadow += 1;
+                        if blocked[k] { DVec3::ZERO } else { DVec3::ONE }
+                    }
+                    None => self.visibility(&origins, sample, candidates.as_mut(), stats),
+                };
                 rec.feeler(index, sample.direction, sample.falloff, visibility);
                 if visibility != DVec3::ZERO {
                     sum += visibility
@@ -442,6 +456,31 @@ impl<'a> Whitted<'a> {
         let contribution = light.radiance * sum / count as f64;
         rec.light(index, count, contribution);
         contribution
+    }
+
+    /// For each sample of `batch` the light is in front of (N·L > 0),
+    /// whether a candidate blocks its feeler: the answers of
+    /// [`visibility`](Self::visibility) without transparent shadows.
+    fn feelers_blocked(
+        &self,
+        candidates: &ShadowCandidates,
+        origins: &SpawnOrigins,
+        n: DVec3,
+        batch: &[LightSample],
+    ) -> [bool; SAMPLE_BATCH] {
+        let mut feelers = FeelerBatch::<SAMPLE_BATCH>::default();
+        for (k, sample) in batch.iter().enumerate() {
+            let (ray, gap) = origins.spawn(sample.direction);
+            for axis in 0..3 {
+                feelers.origin[axis][k] = ray.origin[axis];
+                feelers.direction[axis][k] = ray.direction[axis];
+            }
+            feelers.t_max[k] = sample.distance - gap;
+            // The lanes the loop in `direct` traces (NaN included).
+            let behind = n.dot(sample.direction) <= 0.0;
+            feelers.active[k] = !behind;
+        }
+        candidates.any_hit_batch(&self.scene.aggregate, &feelers)
     }
 
     /// The fraction of light that reaches the hit along a shadow feeler, per

@@ -1,5 +1,5 @@
-//! The AVX2 node test (and a prefetch hint): the only `unsafe` code in the
-//! library. Each function here is compiled for AVX2 and may run only where
+//! The AVX2 node test (and a prefetch hint, and a gate that compiles batch
+//! loops for AVX2): the only `unsafe` code in the library. Each function here is compiled for AVX2 and may run only where
 //! the CPU has it, which an [`Avx2`] value proves.
 
 #![allow(unsafe_code)]
@@ -20,6 +20,24 @@ impl Avx2 {
     pub fn detect() -> Option<Self> {
         is_x86_feature_detected!("avx2").then_some(Avx2 { _proof: () })
     }
+}
+
+impl Avx2 {
+    /// Runs `f` inlined into a function compiled for AVX2.
+    #[inline]
+    pub fn vectorize<R>(self, f: impl FnOnce() -> R) -> R {
+        // SAFETY: `self` exists only where `detect` found AVX2.
+        unsafe { with_avx2(f) }
+    }
+}
+
+/// `f()`, with AVX2 enabled for the code of `f` inlined here.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[target_feature(enable = "avx2")]
+unsafe fn with_avx2<R>(f: impl FnOnce() -> R) -> R {
+    f()
 }
 
 impl Lanes for Avx2 {

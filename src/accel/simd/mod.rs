@@ -98,6 +98,19 @@ impl Kernel {
         }
     }
 
+    /// Runs `f`, on the AVX2 path compiled for AVX2, so that its loops
+    /// over batches become 256-bit vector code rather than baseline SSE2.
+    /// A vector operation is the scalar one lane by lane (and FMA stays
+    /// off), so `f` computes the same bits on every path.
+    #[inline]
+    pub(crate) fn vectorize<R>(self, f: impl FnOnce() -> R) -> R {
+        match self {
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2(k) => k.vectorize(f),
+            Kernel::Sse2 | Kernel::Scalar => f(),
+        }
+    }
+
     /// Closest-hit traversal (see `wide::closest`) on this kernel.
     #[inline]
     pub(crate) fn closest(
