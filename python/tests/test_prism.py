@@ -4,6 +4,7 @@ trees, the same errors; the GIL released; Ctrl-C obeyed."""
 import _thread
 import os
 import subprocess
+import signal
 import threading
 import time
 from pathlib import Path
@@ -101,12 +102,20 @@ def test_the_gil_is_released_while_rendering():
 
 def test_keyboard_interrupt_cancels_the_render():
     scene = prism.load(SCENES / "soft-shadows.toml")
+    # Python's own Ctrl-C handler, which a process started in the
+    # background without job control (SIGINT ignored) does not install,
+    # and without which interrupt_main does nothing.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     timer = threading.Timer(0.3, _thread.interrupt_main)
     timer.start()
     start = time.perf_counter()
-    with pytest.raises(KeyboardInterrupt):
-        # Minutes of work if not stopped.
-        scene.render(width=1280, height=960, spp=64, threads=1, progress=False)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            # Minutes of work if not stopped.
+            scene.render(width=1280, height=960, spp=64, threads=1, progress=False)
+    finally:
+        timer.cancel()
+        signal.signal(signal.SIGINT, previous)
     assert time.perf_counter() - start < 10
 
 
