@@ -269,6 +269,18 @@ impl<const N: usize> Default for FeelerBatch<N> {
 }
 
 impl<const N: usize> FeelerBatch<N> {
+    /// Puts `ray`, reaching `t_max`, in lane `k`, switched on or off.
+    #[inline(always)]
+    pub fn set(&mut self, k: usize, ray: &Ray, t_max: f64, active: bool) {
+        for axis in 0..3 {
+            self.origin[axis][k] = ray.origin[axis];
+            self.direction[axis][k] = ray.direction[axis];
+        }
+        self.t_max[k] = t_max;
+        self.active[k] = active;
+    }
+
+    /// Lane `k` as a ray.
     fn ray(&self, k: usize) -> Ray {
         let [x, y, z] = self.origin;
         let [dx, dy, dz] = self.direction;
@@ -419,12 +431,7 @@ mod tests {
                 compared += 1;
                 blocked += usize::from(full);
                 let lane = i % 16;
-                for axis in 0..3 {
-                    batch.origin[axis][lane] = feeler.origin[axis];
-                    batch.direction[axis][lane] = feeler.direction[axis];
-                }
-                batch.t_max[lane] = t_max;
-                batch.active[lane] = i % 5 != 0;
+                batch.set(lane, &feeler, t_max, i % 5 != 0);
                 expected[lane] = full;
                 if lane == 15 {
                     let got = candidates.any_hit_batch(&aggregate, &batch);
@@ -479,12 +486,7 @@ mod tests {
                 let direction = uniform_cone(&frame, cos_max, u);
                 let feeler = Ray::spawn(apex, normal, direction);
                 let t_max = crate::lights::distance_to_sphere(direction, to_center, radius);
-                for axis in 0..3 {
-                    batch.origin[axis][lane] = feeler.origin[axis];
-                    batch.direction[axis][lane] = direction[axis];
-                }
-                batch.t_max[lane] = t_max;
-                batch.active[lane] = true;
+                batch.set(lane, &feeler, t_max, true);
                 *expected = aggregate.any_hit(&feeler, t_max);
             }
             assert_eq!(candidates.any_hit_batch(&aggregate, &batch), expected);

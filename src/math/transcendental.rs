@@ -76,8 +76,8 @@ pub fn pow(x: f64, y: f64) -> f64 {
 /// x to a whole power n, by repeated squaring: about log₂ n multiplies
 /// instead of libm's pow (a fifth of the Whitted benchmark scene with a
 /// 64-feeler light was pow for the Phong highlight, whose exponent is
-/// usually whole). Plain multiplies in a
-/// fixed order, so every CPU gets the same bits; each of the at most
+/// usually whole). Plain multiplies in a fixed order, so every CPU gets
+/// the same bits; each of the at most
 /// 2·log₂ n roundings adds one relative error of 2⁻⁵³ (doubled by each
 /// squaring after it), so the result is within about 2n units in the last
 /// place of xⁿ: 240 for n = 120, 3·10⁻¹⁴ relative.

@@ -471,14 +471,9 @@ impl<'a> Whitted<'a> {
         let mut feelers = FeelerBatch::<SAMPLE_BATCH>::default();
         for (k, sample) in batch.iter().enumerate() {
             let (ray, gap) = origins.spawn(sample.direction);
-            for axis in 0..3 {
-                feelers.origin[axis][k] = ray.origin[axis];
-                feelers.direction[axis][k] = ray.direction[axis];
-            }
-            feelers.t_max[k] = sample.distance - gap;
             // The lanes the loop in `direct` traces (NaN included).
             let behind = n.dot(sample.direction) <= 0.0;
-            feelers.active[k] = !behind;
+            feelers.set(k, &ray, sample.distance - gap, !behind);
         }
         candidates.any_hit_batch(&self.scene.aggregate, &feelers)
     }

@@ -1,6 +1,7 @@
-//! The AVX2 node test (and a prefetch hint, and a gate that compiles batch
-//! loops for AVX2): the only `unsafe` code in the library. Each function here is compiled for AVX2 and may run only where
-//! the CPU has it, which an [`Avx2`] value proves.
+//! The AVX2 node test, a prefetch hint, and a gate that compiles batch
+//! loops for AVX2: the only `unsafe` code in the library. Each function
+//! here is compiled for AVX2 and may run only where the CPU has it, which
+//! an [`Avx2`] value proves.
 
 #![allow(unsafe_code)]
 
@@ -20,9 +21,7 @@ impl Avx2 {
     pub fn detect() -> Option<Self> {
         is_x86_feature_detected!("avx2").then_some(Avx2 { _proof: () })
     }
-}
 
-impl Avx2 {
     /// Runs `f` inlined into a function compiled for AVX2.
     #[inline]
     pub fn vectorize<R>(self, f: impl FnOnce() -> R) -> R {
