@@ -15,7 +15,7 @@ use std::time::Duration;
 
 use glam::DVec3;
 use numpy::{IntoPyArray, PyArrayMethods, PyReadonlyArray3, PyUntypedArrayMethods};
-use prism::image_io::{to_f32, to_srgb8 as srgb8, write_film};
+use prism::image_io::{srgb8_of_f32, to_f32, write_film};
 use prism::render::aov::{Aov, render_aov};
 use prism::render::explain::explain as explain_pixel;
 use prism::render::{Film, Region, RenderError, render_region};
@@ -436,11 +436,7 @@ fn to_srgb8<'py>(
             "expected an array of shape (H, W, 3), got {shape:?}"
         )));
     }
-    let bytes: Vec<u8> = array
-        .as_array()
-        .iter()
-        .map(|&v| srgb8(f64::from(v)))
-        .collect();
+    let bytes: Vec<u8> = array.as_array().iter().map(|&v| srgb8_of_f32(v)).collect();
     Ok(bytes
         .into_pyarray(py)
         .reshape([shape[0], shape[1], 3])?
