@@ -11,7 +11,7 @@ use glam::DVec3;
 
 use super::{Aggregate, Shape, simd};
 use crate::geometry::Aabb;
-use crate::geometry::sphere::sphere_blocks;
+use crate::geometry::sphere::{sphere_blocks, sphere_first_root};
 use crate::math::Ray;
 use crate::math::ray::RELATIVE_OFFSET;
 
@@ -338,6 +338,88 @@ impl ShadowCandidates {
         }
         blocked
     }
+
+    /// For each active lane of `feelers`, the nearest candidate it meets:
+    /// what [`nearest`](Self::nearest) answers feeler by feeler, the same
+    /// candidates in the same order, so the same one wins a tie. Spheres
+    /// are tested against every lane at once by [`sphere_first_root`];
+    /// other shapes lane by lane.
+    pub fn nearest_batch<const N: usize>(
+        &self,
+        aggregate: &Aggregate,
+        feelers: &FeelerBatch<N>,
+    ) -> [Option<Blocker>; N] {
+        simd::kernel().vectorize(|| self.nearest_batch_here(aggregate, feelers))
+    }
+
+    /// [`nearest_batch`](Self::nearest_batch), compiled into its caller.
+    #[inline(always)]
+    fn nearest_batch_here<const N: usize>(
+        &self,
+        aggregate: &Aggregate,
+        feelers: &FeelerBatch<N>,
+    ) -> [Option<Blocker>; N] {
+        const NONE: u32 = u32::MAX;
+        let mut closest = feelers.t_max;
+        // Per lane, the candidate slot nearest so far, and its hit when
+        // that is not a sphere (a sphere's is made from t at the end).
+        let mut nearest = [NONE; N];
+        let mut found = [None; N];
+        for (slot, &i) in self.primitives[..self.len].iter().enumerate() {
+            let p = &aggregate.primitives[i as usize];
+            match &p.shape {
+                Shape::Sphere(s) => {
+                    let ([x, y, z], [dx, dy, dz]) = (&feelers.origin, &feelers.direction);
+                    for k in 0..N {
+                        let (hit, t) = sphere_first_root(
+                            [x[k], y[k], z[k]],
+                            [dx[k], dy[k], dz[k]],
+                            closest[k],
+                            s.center,
+                            s.radius,
+                        );
+                        closest[k] = if hit { t } else { closest[k] };
+                        nearest[k] = if hit { slot as u32 } else { nearest[k] };
+                    }
+                }
+                shape => {
+                    for k in 0..N {
+                        if !feelers.active[k] {
+                            continue;
+                        }
+                        if let Some(h) = shape.intersect(&feelers.ray(k), 0.0, closest[k]) {
+                            closest[k] = h.t;
+                            nearest[k] = slot as u32;
+                            found[k] = Some(Blocker {
+                                t: h.t,
+                                normal: h.normal,
+                                material: h.material.unwrap_or(p.material),
+                            });
+                        }
+                    }
+                }
+            }
+        }
+        let mut blockers = [None; N];
+        for k in 0..N {
+            if !feelers.active[k] || nearest[k] == NONE {
+                continue;
+            }
+            let p = &aggregate.primitives[self.primitives[nearest[k] as usize] as usize];
+            blockers[k] = match &p.shape {
+                Shape::Sphere(s) => {
+                    let h = s.hit_at(&feelers.ray(k), closest[k]);
+                    Some(Blocker {
+                        t: h.t,
+                        normal: h.normal,
+                        material: p.material,
+                    })
+                }
+                _ => found[k],
+            };
+        }
+        blockers
+    }
 }
 
 #[cfg(test)]
@@ -413,6 +495,7 @@ mod tests {
             // with every fifth lane switched off.
             let mut batch = FeelerBatch::<16>::default();
             let mut expected = [false; 16];
+            let mut expected_nearest = [None; 16];
             for i in 0..64 {
                 let direction = uniform_cone(&frame, cos_max, strata.point(i, &mut rng));
                 let distance = sphere_roots(DVec3::ZERO, direction, to_center, radius)
@@ -433,10 +516,16 @@ mod tests {
                 let lane = i % 16;
                 batch.set(lane, &feeler, t_max, i % 5 != 0);
                 expected[lane] = full;
+                expected_nearest[lane] = nearest;
                 if lane == 15 {
                     let got = candidates.any_hit_batch(&aggregate, &batch);
+                    let got_nearest = candidates.nearest_batch(&aggregate, &batch);
                     for lane in (0..16).filter(|&l| batch.active[l]) {
                         assert_eq!(got[lane], expected[lane], "{apex} feeler {lane}");
+                        assert_eq!(
+                            got_nearest[lane], expected_nearest[lane],
+                            "{apex} feeler {lane}"
+                        );
                     }
                 }
             }
@@ -481,6 +570,7 @@ mod tests {
         for _ in 0..100 {
             let mut batch = FeelerBatch::<16>::default();
             let mut expected = [false; 16];
+            let mut expected_nearest = [None; 16];
             for (lane, expected) in expected.iter_mut().enumerate() {
                 let u = glam::DVec2::new(rng.uniform(), rng.uniform());
                 let direction = uniform_cone(&frame, cos_max, u);
@@ -488,8 +578,13 @@ mod tests {
                 let t_max = crate::lights::distance_to_sphere(direction, to_center, radius);
                 batch.set(lane, &feeler, t_max, true);
                 *expected = aggregate.any_hit(&feeler, t_max);
+                expected_nearest[lane] = candidates.nearest(&aggregate, &feeler, t_max);
             }
             assert_eq!(candidates.any_hit_batch(&aggregate, &batch), expected);
+            assert_eq!(
+                candidates.nearest_batch(&aggregate, &batch),
+                expected_nearest
+            );
             blocked += expected.iter().filter(|&&b| b).count();
         }
         // Some feelers pass, some are blocked.

@@ -47,20 +47,21 @@ pub fn sphere_roots(
     Some(if t0 <= t1 { (t0, t1) } else { (t1, t0) })
 }
 
-/// Whether the ray (origin, direction) meets the sphere with t in
-/// (0, t_max): the answer of [`sphere_roots`] and a root in that range, the
-/// same operations in the same order, but without a branch (every value is
-/// computed, the cases become masks), so that a loop over many rays
-/// compiles to vector code. Coordinates come one by one, as a structure of
-/// arrays hands them over.
+/// The nearest root of the ray (origin, direction) in (0, t_max), if it
+/// has one: the answer of [`sphere_roots`] and [`nearest_root`], the same
+/// operations in the same order, but without a branch (every value is
+/// computed, the cases become masks and selects), so that a loop over many
+/// rays compiles to vector code. Coordinates come one by one, as a
+/// structure of arrays hands them over. The root is meaningful only where
+/// the flag is set.
 #[inline(always)]
-pub fn sphere_blocks(
+pub fn sphere_first_root(
     [ox, oy, oz]: [f64; 3],
     [dx, dy, dz]: [f64; 3],
     t_max: f64,
     center: DVec3,
     radius: f64,
-) -> bool {
+) -> (bool, f64) {
     let (fx, fy, fz) = (ox - center.x, oy - center.y, oz - center.z);
     let a = dx * dx + dy * dy + dz * dz;
     let b = fx * dx + fy * dy + fz * dz;
@@ -70,9 +71,25 @@ pub fn sphere_blocks(
     let c = fx * fx + fy * fy + fz * fz - radius * radius;
     let q = -(b + discriminant.sqrt().copysign(b));
     let (t0, t1) = (q / a, c / q);
-    // A root of 0 (q = 0, tangent at the origin) is not in (0, t_max).
     let within = |t: f64| t > 0.0 && t < t_max;
-    (discriminant >= 0.0) & (q != 0.0) & (within(t0) | within(t1))
+    // A root of 0 (q = 0, tangent at the origin) is not in (0, t_max).
+    let hit = (discriminant >= 0.0) & (q != 0.0) & (within(t0) | within(t1));
+    // Which root (an any-hit caller leaves this unused, and unevaluated).
+    let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
+    (hit, if within(near) { near } else { far })
+}
+
+/// Whether the ray (origin, direction) meets the sphere with t in
+/// (0, t_max): [`sphere_first_root`]'s flag, for any-hit feelers.
+#[inline(always)]
+pub fn sphere_blocks(
+    origin: [f64; 3],
+    direction: [f64; 3],
+    t_max: f64,
+    center: DVec3,
+    radius: f64,
+) -> bool {
+    sphere_first_root(origin, direction, t_max, center, radius).0
 }
 
 /// The nearest root in (t_min, t_max).
@@ -93,12 +110,14 @@ impl Sphere {
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
         let roots = sphere_roots(ray.origin, ray.direction, self.center, self.radius)?;
         let t = nearest_root(roots, t_min, t_max)?;
+        Some(self.hit_at(ray, t))
+    }
+
+    /// The hit of `ray` at its root `t`.
+    #[inline]
+    pub fn hit_at(&self, ray: &Ray, t: f64) -> ShapeHit {
         let normal = (ray.at(t) - self.center) / self.radius;
-        Some(ShapeHit::geometric(
-            t,
-            normal,
-            ray.direction.dot(normal) < 0.0,
-        ))
+        ShapeHit::geometric(t, normal, ray.direction.dot(normal) < 0.0)
     }
 
     /// Whether the ray meets the sphere with t in (t_min, t_max): the
@@ -170,7 +189,7 @@ mod tests {
     /// from outside, inside and on the sphere, towards and away from it,
     /// grazing it, with short and infinite reach.
     #[test]
-    fn sphere_blocks_answers_as_occludes() {
+    fn branch_free_roots_answer_as_occludes_and_intersect() {
         let mut rng = PixelRng::new(21, 0, 0);
         let mut u = || 2.0 * rng.uniform() - 1.0;
         let mut blocked = 0;
@@ -197,6 +216,15 @@ mod tests {
             };
             let ray = Ray { origin, direction };
             let expected = s.occludes(&ray, 0.0, t_max);
+            let root = sphere_first_root(
+                origin.to_array(),
+                direction.to_array(),
+                t_max,
+                s.center,
+                s.radius,
+            );
+            let nearest = s.intersect(&ray, 0.0, t_max).map(|h| h.t);
+            assert_eq!(root.0.then_some(root.1), nearest, "{ray:?} {s:?} {t_max}");
             let got = sphere_blocks(
                 origin.to_array(),
                 direction.to_array(),

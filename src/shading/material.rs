@@ -122,6 +122,105 @@ impl Material {
         };
         (self.kd * od * n_dot_l, specular)
     }
+
+    /// [`phong`](Self::phong) for each of up to `N` light directions, into
+    /// `out`, lane k for the k-th direction (lanes past the last are left
+    /// meaningless). The same operations as `phong`, in the same order,
+    /// lane by lane, written as loops over the lanes that compile to vector
+    /// code: the highlight's power by repeated squaring takes the same steps
+    /// in every lane where the exponent is whole (else each lane calls
+    /// `phong`). So every lane has `phong`'s bits; a test checks it.
+    #[inline(always)]
+    pub fn phong_batch<const N: usize>(
+        &self,
+        od: DVec3,
+        n: DVec3,
+        view: DVec3,
+        directions: impl Iterator<Item = DVec3>,
+        out: &mut [DVec3; N],
+    ) {
+        let mut l = [[0.0; N]; 3];
+        let mut count = 0;
+        for (k, d) in directions.take(N).enumerate() {
+            (l[0][k], l[1][k], l[2][k]) = (d.x, d.y, d.z);
+            count = k + 1;
+        }
+        let whole = (0.0..=4096.0).contains(&self.shininess)
+            && self.shininess == f64::from(self.shininess as u32);
+        if !whole {
+            for (k, out) in out.iter_mut().enumerate().take(count) {
+                let l = DVec3::new(l[0][k], l[1][k], l[2][k]);
+                *out = self.phong(od, n, l, view);
+            }
+            return;
+        }
+        let [lx, ly, lz] = &l;
+        // N·L, clamped; the highlight's base, clamped.
+        let mut n_dot_l = [0.0; N];
+        let mut highlight = [0.0; N];
+        for k in 0..N {
+            n_dot_l[k] = (n.x * lx[k] + n.y * ly[k] + n.z * lz[k]).max(0.0);
+        }
+        let kd_od = self.kd * od;
+        let has_highlight = self.ks > 0.0;
+        if !has_highlight {
+            // No highlight (a matte surface): the diffuse term alone.
+            for k in 0..N {
+                out[k] = kd_od * n_dot_l[k] + DVec3::splat(0.0);
+            }
+            return;
+        }
+        match self.highlight {
+            Highlight::Phong => {
+                // R·V with R = reflect(−L, N) = I − 2N(I·N), I = −L.
+                for k in 0..N {
+                    let (ix, iy, iz) = (-lx[k], -ly[k], -lz[k]);
+                    let i_dot_n = ix * n.x + iy * n.y + iz * n.z;
+                    let rx = ix - 2.0 * n.x * i_dot_n;
+                    let ry = iy - 2.0 * n.y * i_dot_n;
+                    let rz = iz - 2.0 * n.z * i_dot_n;
+                    highlight[k] = (rx * view.x + ry * view.y + rz * view.z).max(0.0);
+                }
+            }
+            Highlight::Blinn => {
+                // N·H with H = (L + V)/|L + V|, as glam's normalize does it.
+                for k in 0..N {
+                    let (hx, hy, hz) = (lx[k] + view.x, ly[k] + view.y, lz[k] + view.z);
+                    let recip = 1.0 / (hx * hx + hy * hy + hz * hz).sqrt();
+                    let (hx, hy, hz) = (hx * recip, hy * recip, hz * recip);
+                    highlight[k] = (n.x * hx + n.y * hy + n.z * hz).max(0.0);
+                }
+            }
+        }
+        // transcendental::powi, the exponent's bits the same in every lane.
+        let mut power = [1.0; N];
+        let mut base = highlight;
+        let mut e = self.shininess as u32;
+        while e > 0 {
+            if e & 1 == 1 {
+                for k in 0..N {
+                    power[k] *= base[k];
+                }
+            }
+            e >>= 1;
+            if e > 0 {
+                for b in &mut base {
+                    *b *= *b;
+                }
+            }
+        }
+        for k in 0..N {
+            let lit = n_dot_l[k] > 0.0;
+            // pow(0, n) = 0 for n > 0, as `phong_terms` short-cuts it.
+            let dark = highlight[k] == 0.0 && self.shininess > 0.0;
+            let specular = if lit && !dark {
+                self.ks * power[k]
+            } else {
+                0.0
+            };
+            out[k] = kd_od * n_dot_l[k] + DVec3::splat(specular);
+        }
+    }
 }
 
 #[cfg(test)]
@@ -163,6 +262,52 @@ mod tests {
         assert!((c - expected).length() < 1e-12, "{c}");
         // Light below the surface: nothing.
         assert_eq!(m.phong(od, n, -l, v), DVec3::ZERO);
+    }
+
+    /// Every lane of the batch has the bits `phong` gives that direction:
+    /// both highlights, whole and fractional exponents, ks of 0, lights
+    /// behind the surface, highlights of exactly 0, short batches.
+    #[test]
+    fn a_batch_is_phong_lane_by_lane() {
+        let mut rng = crate::math::rng::PixelRng::new(31, 0, 0);
+        let mut u = || 2.0 * rng.uniform() - 1.0;
+        let mut specular = 0;
+        for i in 0..4000 {
+            let mut m = material(if i % 2 == 0 {
+                Highlight::Phong
+            } else {
+                Highlight::Blinn
+            });
+            m.ks = [0.0, 0.5, 0.8][i % 3];
+            m.shininess = [10.0, 1.0, 0.0, 37.5, 120.0, 4097.0][i % 6];
+            let od = DVec3::new(u().abs(), u().abs(), u().abs());
+            let n = DVec3::new(u(), u(), u()).normalize();
+            let view = DVec3::new(u(), u(), u()).normalize();
+            let mut directions = [DVec3::ZERO; 16];
+            for (k, d) in directions.iter_mut().enumerate() {
+                *d = match k % 4 {
+                    // The mirror of the view: R·V = 1; its perpendicular
+                    // in the plane of N and V: R·V = 0 or nearly.
+                    0 => reflect(-view, n),
+                    1 => n.cross(view).normalize(),
+                    _ => DVec3::new(u(), u(), u()).normalize(),
+                };
+            }
+            let count = 1 + i % 16;
+            let mut out = [DVec3::NAN; 16];
+            m.phong_batch(od, n, view, directions[..count].iter().copied(), &mut out);
+            for k in 0..count {
+                let expected = m.phong(od, n, directions[k], view);
+                assert_eq!(
+                    out[k].to_array().map(f64::to_bits),
+                    expected.to_array().map(f64::to_bits),
+                    "{m:?} lane {k}: {} vs {expected}",
+                    out[k]
+                );
+                specular += usize::from(expected.x != m.kd * od.x * n.dot(directions[k]).max(0.0));
+            }
+        }
+        assert!(specular > 5000, "{specular}");
     }
 
     #[test]

@@ -10,7 +10,7 @@ use glam::DVec3;
 
 use super::optics::{fresnel_dielectric, reflect, refract, schlick};
 use super::{Fresnel, Material};
-use crate::accel::{Blocker, FeelerBatch, ShadowCandidates};
+use crate::accel::{Blocker, FeelerBatch, ShadowCandidates, simd};
 use crate::geometry::Hit;
 use crate::lights::{Light, LightSample, SAMPLE_BATCH};
 use crate::math::Ray;
@@ -419,37 +419,70 @@ impl<'a> Whitted<'a> {
         let origins = SpawnOrigins::new(point.hit.point, point.hit.normal);
         let mut sum = DVec3::ZERO;
         let mut batch = ArrayVec::<LightSample, SAMPLE_BATCH>::new();
+        let mut feelers = FeelerBatch::<SAMPLE_BATCH>::default();
+        let mut shade = [DVec3::ZERO; SAMPLE_BATCH];
         for start in (0..count).step_by(SAMPLE_BATCH) {
             // Draw a batch of directions first (vector code), then trace
             // them; the draws and the sum keep their order.
             sampler.sample_batch(start, rng, &mut batch);
-            // Opaque shadows against a few candidates: the whole batch of
-            // feelers at once.
-            let blocked = match candidates.as_ref() {
-                Some(c) if !self.scene.transparent_shadows => {
-                    Some(self.feelers_blocked(c, &origins, point.n, &batch))
+            // Against a few candidates, the whole batch of feelers at once:
+            // whether each is blocked, or (transparent shadows) the first
+            // surface each meets.
+            let (mut blocked, mut nearest) = (None, None);
+            if let Some(c) = candidates.as_ref() {
+                Self::set_feelers(&mut feelers, &origins, point.n, &batch);
+                let aggregate = &self.scene.aggregate;
+                if self.scene.transparent_shadows {
+                    nearest = Some(c.nearest_batch(aggregate, &feelers));
+                } else {
+                    blocked = Some(c.any_hit_batch(aggregate, &feelers));
                 }
-                _ => None,
-            };
+            }
+            let mut visible = [DVec3::ZERO; SAMPLE_BATCH];
             for (k, sample) in batch.iter().enumerate() {
                 if point.n.dot(sample.direction) <= 0.0 {
                     // The light is behind the surface: no feeler needed.
                     continue;
                 }
-                let visibility = match &blocked {
-                    Some(blocked) => {
+                let visibility = match (&blocked, &nearest) {
+                    (Some(blocked), _) => {
                         stats.shadow += 1;
                         if blocked[k] { DVec3::ZERO } else { DVec3::ONE }
                     }
-                    None => self.visibility(&origins, sample, candidates.as_mut(), stats),
+                    (_, Some(nearest)) => {
+                        stats.shadow += 1;
+                        match nearest[k] {
+                            // Most feelers: nothing in the way.
+                            None => DVec3::ONE,
+                            first => {
+                                let (feeler, gap) = origins.spawn(sample.direction);
+                                let remaining = sample.distance - gap;
+                                let c = candidates.as_ref();
+                                self.transmission(feeler, remaining, first, c, stats)
+                            }
+                        }
+                    }
+                    _ => self.visibility(&origins, sample, candidates.as_mut(), stats),
                 };
                 rec.feeler(index, sample.direction, sample.falloff, visibility);
-                if visibility != DVec3::ZERO {
-                    sum += visibility
-                        * sample.falloff
-                        * point
-                            .material
-                            .phong(point.od, point.n, sample.direction, point.view);
+                visible[k] = visibility;
+            }
+            // The local model of the feelers that got through, the whole
+            // batch in vector code, summed in the order of the samples.
+            if visible.iter().any(|&v| v != DVec3::ZERO) {
+                simd::kernel().vectorize(|| {
+                    point.material.phong_batch(
+                        point.od,
+                        point.n,
+                        point.view,
+                        batch.iter().map(|s| s.direction),
+                        &mut shade,
+                    )
+                });
+                for (k, sample) in batch.iter().enumerate() {
+                    if visible[k] != DVec3::ZERO {
+                        sum += visible[k] * sample.falloff * shade[k];
+                    }
                 }
             }
         }
@@ -458,24 +491,23 @@ impl<'a> Whitted<'a> {
         contribution
     }
 
-    /// For each sample of `batch` the light is in front of (N·L > 0),
-    /// whether a candidate blocks its feeler: the answers of
-    /// [`visibility`](Self::visibility) without transparent shadows.
-    fn feelers_blocked(
-        &self,
-        candidates: &ShadowCandidates,
+    /// Sets `feelers` to those of `batch`, lanes switched on where the light
+    /// is in front of the surface (N·L > 0): those the loop in `direct`
+    /// traces.
+    fn set_feelers(
+        feelers: &mut FeelerBatch<SAMPLE_BATCH>,
         origins: &SpawnOrigins,
         n: DVec3,
         batch: &[LightSample],
-    ) -> [bool; SAMPLE_BATCH] {
-        let mut feelers = FeelerBatch::<SAMPLE_BATCH>::default();
+    ) {
         for (k, sample) in batch.iter().enumerate() {
             let (ray, gap) = origins.spawn(sample.direction);
-            // The lanes the loop in `direct` traces (NaN included).
+            // NaN included.
             let behind = n.dot(sample.direction) <= 0.0;
             feelers.set(k, &ray, sample.distance - gap, !behind);
         }
-        candidates.any_hit_batch(&self.scene.aggregate, &feelers)
+        // A short last batch: its unused lanes off.
+        feelers.active[batch.len()..].fill(false);
     }
 
     /// The fraction of light that reaches the hit along a shadow feeler, per
@@ -489,8 +521,8 @@ impl<'a> Whitted<'a> {
         mut candidates: Option<&mut ShadowCandidates>,
         stats: &mut RayStats,
     ) -> DVec3 {
-        let (mut feeler, gap) = origins.spawn(sample.direction);
-        let mut remaining = sample.distance - gap;
+        let (feeler, gap) = origins.spawn(sample.direction);
+        let remaining = sample.distance - gap;
         if !self.scene.transparent_shadows {
             stats.shadow += 1;
             let blocked = match candidates.as_mut() {
@@ -499,32 +531,60 @@ impl<'a> Whitted<'a> {
             };
             return if blocked { DVec3::ZERO } else { DVec3::ONE };
         }
+        stats.shadow += 1;
+        let first = self.nearest_blocker(&feeler, remaining, candidates.as_deref());
+        self.transmission(feeler, remaining, first, candidates.as_deref(), stats)
+    }
+
+    /// The first surface `feeler` meets within `remaining`.
+    fn nearest_blocker(
+        &self,
+        feeler: &Ray,
+        remaining: f64,
+        candidates: Option<&ShadowCandidates>,
+    ) -> Option<Blocker> {
+        match candidates {
+            Some(c) => c.nearest(&self.scene.aggregate, feeler, remaining),
+            None => self
+                .scene
+                .aggregate
+                .closest_hit(feeler, remaining)
+                .map(|h| Blocker {
+                    t: h.t,
+                    normal: h.normal,
+                    material: h.material,
+                }),
+        }
+    }
+
+    /// Transparent shadows: the light a feeler carries past `first`, the
+    /// first surface it meets (already found, and counted), and every one
+    /// after it, each passing its kt.
+    fn transmission(
+        &self,
+        mut feeler: Ray,
+        mut remaining: f64,
+        first: Option<Blocker>,
+        candidates: Option<&ShadowCandidates>,
+        stats: &mut RayStats,
+    ) -> DVec3 {
+        let direction = feeler.direction;
         let mut transmission = DVec3::ONE;
+        let mut blocker = first;
         loop {
-            stats.shadow += 1;
-            let blocker = match &candidates {
-                Some(c) => c.nearest(&self.scene.aggregate, &feeler, remaining),
-                None => self
-                    .scene
-                    .aggregate
-                    .closest_hit(&feeler, remaining)
-                    .map(|h| Blocker {
-                        t: h.t,
-                        normal: h.normal,
-                        material: h.material,
-                    }),
-            };
-            let Some(blocker) = blocker else {
+            let Some(b) = blocker else {
                 return transmission;
             };
-            transmission *= self.scene.materials[blocker.material as usize].kt;
+            transmission *= self.scene.materials[b.material as usize].kt;
             if transmission.max_element() < 1e-6 {
                 return DVec3::ZERO;
             }
-            let point = feeler.at(blocker.t);
-            let next = Ray::spawn(point, blocker.normal, sample.direction);
-            remaining -= blocker.t + (next.origin - point).length();
+            let point = feeler.at(b.t);
+            let next = Ray::spawn(point, b.normal, direction);
+            remaining -= b.t + (next.origin - point).length();
             feeler = next;
+            stats.shadow += 1;
+            blocker = self.nearest_blocker(&feeler, remaining, candidates);
         }
     }
 }
