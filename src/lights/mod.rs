@@ -14,6 +14,9 @@ use crate::math::transcendental::sin_cos_turns;
 /// How many samples [`LightSampler::sample_batch`] draws at once.
 pub const SAMPLE_BATCH: usize = 16;
 
+// A batch's two draws per sample come from one `fill_uniform`.
+const _: () = assert!(2 * SAMPLE_BATCH <= crate::math::rng::FILL_MAX);
+
 /// Where light comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum LightShape {
@@ -262,9 +265,13 @@ impl LightSampler {
                 falloff,
                 strata,
             } => {
+                // Two draws per point, x then y, all at once.
+                let mut draws = [0.0; 2 * SAMPLE_BATCH];
+                rng.fill_uniform(&mut draws[..2 * wanted]);
                 let mut u = [DVec2::ZERO; SAMPLE_BATCH];
                 for (k, u) in u.iter_mut().enumerate().take(wanted) {
-                    *u = strata.point(first + k, rng);
+                    let jitter = DVec2::new(draws[2 * k], draws[2 * k + 1]);
+                    *u = strata.point_at(first + k, jitter);
                 }
                 // Structure of arrays, every lane computed (the unused ones
                 // from u = 0), so each loop has a fixed count and no branch;

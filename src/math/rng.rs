@@ -5,11 +5,46 @@
 //! which order: the image is bit-identical for any thread count, and any
 //! region of it can be rendered alone.
 
-use rand_core::{RngCore, SeedableRng};
-use rand_pcg::Pcg64Mcg;
+/// The random stream of one pixel: PCG's 128-bit multiplicative generator
+/// with the XSL RR output (`pcg64_fast`), the stream of `rand_pcg`'s
+/// `Pcg64Mcg` to the bit (a test compares them). Written out here because
+/// a batch of draws needs the state: draw k of a batch is state · Mᵏ, so
+/// the draws of a batch are independent multiplies rather than a chain of
+/// them (see [`fill_uniform`](Self::fill_uniform)).
+pub struct PixelRng {
+    state: u128,
+}
 
-/// The random stream of one pixel.
-pub struct PixelRng(Pcg64Mcg);
+/// The generator's multiplier M.
+const MULTIPLIER: u128 = 0x2360_ED05_1FC6_5DA4_4385_DF64_9FCC_F645;
+
+/// Most draws [`PixelRng::fill_uniform`] makes at once.
+pub const FILL_MAX: usize = 32;
+
+/// M¹ … M^FILL_MAX (mod 2¹²⁸).
+const POWERS: [u128; FILL_MAX] = {
+    let mut powers = [MULTIPLIER; FILL_MAX];
+    let mut k = 1;
+    while k < FILL_MAX {
+        powers[k] = powers[k - 1].wrapping_mul(MULTIPLIER);
+        k += 1;
+    }
+    powers
+};
+
+/// PCG's XSL RR output of a state: xor of the halves, rotated by the top
+/// six bits.
+#[inline(always)]
+fn output(state: u128) -> u64 {
+    let rotate = (state >> 122) as u32;
+    (((state >> 64) as u64) ^ (state as u64)).rotate_right(rotate)
+}
+
+/// 53 random bits as a uniform number in [0, 1).
+#[inline(always)]
+fn to_unit(bits: u64) -> f64 {
+    (bits >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+}
 
 /// SplitMix64 finaliser: spreads nearby inputs over the whole 64-bit range.
 #[inline]
@@ -26,13 +61,32 @@ impl PixelRng {
         let key = splitmix64(splitmix64(seed) ^ ((u64::from(y) << 32) | u64::from(x)));
         let hi = splitmix64(key);
         let state = (u128::from(hi) << 64) | u128::from(splitmix64(hi ^ key));
-        PixelRng(Pcg64Mcg::from_seed(state.to_le_bytes()))
+        // The generator needs an odd state (as `Pcg64Mcg::from_seed` sets).
+        PixelRng { state: state | 1 }
     }
 
     /// A uniform number in [0, 1) with 53 random bits.
     #[inline]
     pub fn uniform(&mut self) -> f64 {
-        (self.0.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+        self.state = self.state.wrapping_mul(MULTIPLIER);
+        to_unit(output(self.state))
+    }
+
+    /// Fills `out` (at most [`FILL_MAX`] long) with the next `out.len()`
+    /// values of [`uniform`](Self::uniform), in order, leaving the stream
+    /// where those calls would: the same numbers, from multiplies that do
+    /// not wait for one another.
+    #[inline]
+    pub fn fill_uniform(&mut self, out: &mut [f64]) {
+        let Some(last) = out.len().checked_sub(1) else {
+            return;
+        };
+        assert!(out.len() <= FILL_MAX, "at most {FILL_MAX} draws at once");
+        let state = self.state;
+        for (value, power) in out.iter_mut().zip(&POWERS) {
+            *value = to_unit(output(state.wrapping_mul(*power)));
+        }
+        self.state = state.wrapping_mul(POWERS[last]);
     }
 
     /// An index in 0..n (n > 0).
@@ -57,6 +111,39 @@ mod tests {
         let s3: Vec<f64> = a.iter().map(|_| r3.uniform()).collect();
         assert_eq!(s1, s2);
         assert_ne!(s1, s3);
+    }
+
+    /// The stream is `rand_pcg`'s `Pcg64Mcg` seeded with the same state,
+    /// draw for draw, and a batch is the draws one by one.
+    #[test]
+    fn the_stream_is_pcg64_fast_and_a_batch_is_its_draws() {
+        use rand_core::{RngCore, SeedableRng};
+        for (seed, x, y) in [(0, 0, 0), (1, 3, 4), (u64::MAX, 639, 479), (42, 7, 0)] {
+            let mut ours = PixelRng::new(seed, x, y);
+            let key = splitmix64(splitmix64(seed) ^ ((u64::from(y) << 32) | u64::from(x)));
+            let hi = splitmix64(key);
+            let state = (u128::from(hi) << 64) | u128::from(splitmix64(hi ^ key));
+            let mut reference = rand_pcg::Pcg64Mcg::from_seed(state.to_le_bytes());
+            for _ in 0..10_000 {
+                let expected = (reference.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+                assert_eq!(ours.uniform(), expected);
+            }
+            // Batches of every length, then one by one: the same stream.
+            let mut batched = PixelRng::new(seed, x, y);
+            let mut single = PixelRng::new(seed, x, y);
+            for len in 0..=FILL_MAX {
+                let mut out = [f64::NAN; FILL_MAX];
+                batched.fill_uniform(&mut out[..len]);
+                for (k, &value) in out[..len].iter().enumerate() {
+                    assert_eq!(value, single.uniform(), "batch of {len}, draw {k}");
+                }
+                assert_eq!(
+                    batched.uniform(),
+                    single.uniform(),
+                    "after a batch of {len}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -72,8 +72,14 @@ impl Strata {
     /// A jittered point in stratum `i`.
     #[inline]
     pub fn point(&self, i: usize, rng: &mut PixelRng) -> DVec2 {
+        self.point_at(i, DVec2::new(rng.uniform(), rng.uniform()))
+    }
+
+    /// The point of stratum `i` at `jitter` (in [0, 1)²) across the cell.
+    #[inline]
+    pub fn point_at(&self, i: usize, jitter: DVec2) -> DVec2 {
         let (corner, size) = self.cell(i);
-        corner + size * DVec2::new(rng.uniform(), rng.uniform())
+        corner + size * jitter
     }
 }
 
