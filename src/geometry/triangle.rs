@@ -100,7 +100,11 @@ pub fn triangle_hit(
     let u = cx * by - cy * bx;
     let v = ax * cy - ay * cx;
     let w = bx * ay - by * ax;
-    if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+    // Signs both ways: the ray passes outside. Non-short-circuit `|` and
+    // `&`, so one branch rather than six that mispredict.
+    let negative = (u < 0.0) | (v < 0.0) | (w < 0.0);
+    let positive = (u > 0.0) | (v > 0.0) | (w > 0.0);
+    if negative & positive {
         return None;
     }
     let det = u + v + w;
