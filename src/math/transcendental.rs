@@ -102,11 +102,17 @@ pub fn powi(x: f64, n: u32) -> f64 {
 /// else [`pow`].
 #[inline]
 pub fn pow_whole_fast(x: f64, y: f64) -> f64 {
-    if (0.0..=4096.0).contains(&y) && y == f64::from(y as u32) {
-        powi(x, y as u32)
-    } else {
-        pow(x, y)
+    match whole_exponent(y) {
+        Some(n) => powi(x, n),
+        None => pow(x, y),
     }
+}
+
+/// `y` as the whole exponent [`pow_whole_fast`] takes by squaring: a whole
+/// number in 0..=4096, else `None` (libm's pow).
+#[inline]
+pub fn whole_exponent(y: f64) -> Option<u32> {
+    ((0.0..=4096.0).contains(&y) && y == f64::from(y as u32)).then_some(y as u32)
 }
 
 /// tan x.

@@ -145,15 +145,13 @@ impl Material {
             (l[0][k], l[1][k], l[2][k]) = (d.x, d.y, d.z);
             count = k + 1;
         }
-        let whole = (0.0..=4096.0).contains(&self.shininess)
-            && self.shininess == f64::from(self.shininess as u32);
-        if !whole {
+        let Some(exponent) = transcendental::whole_exponent(self.shininess) else {
             for (k, out) in out.iter_mut().enumerate().take(count) {
                 let l = DVec3::new(l[0][k], l[1][k], l[2][k]);
                 *out = self.phong(od, n, l, view);
             }
             return;
-        }
+        };
         let [lx, ly, lz] = &l;
         // N·L, clamped; the highlight's base, clamped.
         let mut n_dot_l = [0.0; N];
@@ -195,7 +193,7 @@ impl Material {
         // transcendental::powi, the exponent's bits the same in every lane.
         let mut power = [1.0; N];
         let mut base = highlight;
-        let mut e = self.shininess as u32;
+        let mut e = exponent;
         while e > 0 {
             if e & 1 == 1 {
                 for k in 0..N {
