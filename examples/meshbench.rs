@@ -14,6 +14,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use glam::DVec3;
+use prism::accel::PACKET;
 use prism::geometry::Mesh;
 use prism::math::Frame;
 use prism::math::rng::PixelRng;
@@ -189,12 +190,111 @@ fn main() -> anyhow::Result<()> {
             .filter(|&i| mesh.any_hit(r.origins[i], r.directions[i], 0.0, r.t_max[i]))
             .count()
     };
+    // The same queries in packets of eight rays: the camera rays of a tile
+    // of 4×2 pixels, the shadow rays of eight consecutive hits.
+    let mut tiled = Rays {
+        origins: vec![],
+        directions: vec![],
+        t_max: vec![],
+    };
+    for ty in (0..side).step_by(2) {
+        for tx in (0..side).step_by(4) {
+            for y in ty..(ty + 2).min(side) {
+                for x in tx..(tx + 4).min(side) {
+                    let i = y * side + x;
+                    tiled.origins.push(primary.origins[i]);
+                    tiled.directions.push(primary.directions[i]);
+                    tiled.t_max.push(primary.t_max[i]);
+                }
+            }
+        }
+    }
+    let closest_packets = |r: &Rays, chunk: std::ops::Range<usize>| {
+        let mut rays = [(DVec3::ZERO, DVec3::ZERO); PACKET];
+        for (ray, i) in rays.iter_mut().zip(chunk.clone()) {
+            *ray = (r.origins[i], r.directions[i]);
+        }
+        let rays = &rays[..chunk.len()];
+        let mut hits = [None; PACKET];
+        mesh.intersect_packet(rays, 0.0, &r.t_max[chunk], &mut hits[..rays.len()]);
+        hits
+    };
+    let any_packets = |r: &Rays, chunk: std::ops::Range<usize>| {
+        let mut rays = [(DVec3::ZERO, DVec3::ZERO); PACKET];
+        for (ray, i) in rays.iter_mut().zip(chunk.clone()) {
+            *ray = (r.origins[i], r.directions[i]);
+        }
+        let rays = &rays[..chunk.len()];
+        mesh.any_hit_packet(rays, 0.0, &r.t_max[chunk])
+    };
+    let chunks = |r: &Rays| {
+        let n = r.origins.len();
+        (0..n.div_ceil(PACKET)).map(move |c| c * PACKET..n.min((c + 1) * PACKET))
+    };
+    let closest_packet_1 = |r: &Rays| {
+        chunks(r)
+            .map(|c| closest_packets(r, c).iter().flatten().count())
+            .sum::<usize>()
+    };
+    let closest_packet_n = |r: &Rays| {
+        chunks(r)
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|c| closest_packets(r, c).iter().flatten().count())
+            .sum::<usize>()
+    };
+    let any_packet_1 = |r: &Rays| {
+        chunks(r)
+            .map(|c| any_packets(r, c).count_ones() as usize)
+            .sum::<usize>()
+    };
+    let any_packet_n = |r: &Rays| {
+        chunks(r)
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|c| any_packets(r, c).count_ones() as usize)
+            .sum::<usize>()
+    };
+    // Each packet answer must be, to the bit, the ray's answer alone.
+    for r in [&tiled, &incoherent] {
+        for c in chunks(r) {
+            let together = closest_packets(r, c.clone());
+            for (k, i) in c.enumerate() {
+                let alone = mesh.intersect(r.origins[i], r.directions[i], 0.0, r.t_max[i]);
+                anyhow::ensure!(
+                    together[k] == alone,
+                    "ray {i}: the packet's hit differs from the ray's own"
+                );
+            }
+        }
+    }
+    for c in chunks(&shadow) {
+        let together = any_packets(&shadow, c.clone());
+        for (k, i) in c.enumerate() {
+            let alone = mesh.any_hit(
+                shadow.origins[i],
+                shadow.directions[i],
+                0.0,
+                shadow.t_max[i],
+            );
+            anyhow::ensure!(
+                (together >> k & 1 == 1) == alone,
+                "shadow ray {i}: the packet's answer differs from the ray's own"
+            );
+        }
+    }
+
     let (p1, primary_hits) = best_of_3(|| closest_1(&primary));
     let (pn, _) = best_of_3(|| closest_n(&primary));
     let (i1, incoherent_hits) = best_of_3(|| closest_1(&incoherent));
     let (i_n, _) = best_of_3(|| closest_n(&incoherent));
     let (s1, shadow_hits) = best_of_3(|| any_1(&shadow));
     let (sn, _) = best_of_3(|| any_n(&shadow));
+
+    let (pp1, _) = best_of_3(|| closest_packet_1(&tiled));
+    let (ppn, _) = best_of_3(|| closest_packet_n(&tiled));
+    let (sp1, _) = best_of_3(|| any_packet_1(&shadow));
+    let (spn, _) = best_of_3(|| any_packet_n(&shadow));
 
     let obvhs = obvhs_rates(&triangles_in, &primary, &shadow);
 
@@ -217,6 +317,7 @@ fn main() -> anyhow::Result<()> {
          \"primary\": {{\"rays\": {}, \"hits\": {primary_hits}, \"mrays_1\": {}, \"mrays_n\": {}}}, \
          \"incoherent\": {{\"rays\": {}, \"hits\": {incoherent_hits}, \"mrays_1\": {}, \"mrays_n\": {}}}, \
          \"shadow\": {{\"rays\": {}, \"hits\": {shadow_hits}, \"mrays_1\": {}, \"mrays_n\": {}}}, \
+         \"packets\": {{\"primary_mrays_1\": {}, \"primary_mrays_n\": {}, \"shadow_mrays_1\": {}, \"shadow_mrays_n\": {}}}, \
          \"obvhs\": {{\"build_s\": {}, \"primary_mrays_1\": {}, \"shadow_mrays_1\": {}}}}}",
         mesh.triangle_count(),
         mesh.memory_bytes() as f64 / 1e6,
@@ -231,6 +332,10 @@ fn main() -> anyhow::Result<()> {
         shadow.origins.len(),
         rate(shadow.origins.len(), s1),
         rate(shadow.origins.len(), sn),
+        rate(primary.origins.len(), pp1),
+        rate(primary.origins.len(), ppn),
+        rate(shadow.origins.len(), sp1),
+        rate(shadow.origins.len(), spn),
         obvhs.0,
         obvhs.1,
         obvhs.2,

@@ -6,7 +6,8 @@
 use arrayvec::ArrayVec;
 use glam::{DVec3, Vec3};
 
-use super::simd::{self, Kernel, NodeRay};
+use super::packet::{PacketAnyTest, PacketClosestTest};
+use super::simd::{self, Kernel, NodePacket, NodeRay, PACKET};
 use super::wide::{self, WideNode};
 pub use super::wide::{AnyTest, ClosestTest};
 use crate::geometry::Aabb;
@@ -271,6 +272,48 @@ impl Bvh {
         } else {
             let mut stack = Vec::with_capacity(self.stack_need);
             kernel.any(&self.wide, ray, t_max, &mut stack, test)
+        }
+    }
+}
+
+impl Bvh {
+    /// Closest-hit traversal of a packet of rays: what
+    /// [`closest`](Self::closest) does for each ray, with `test(ray,
+    /// position, t_max)` in place of `test(position, t_max)`; `t_max[k]`
+    /// ends as ray k's final limit.
+    #[inline]
+    pub(crate) fn closest_packet_on(
+        &self,
+        kernel: Kernel,
+        rays: &NodePacket,
+        t_max: &mut [f64; PACKET],
+        test: impl PacketClosestTest,
+    ) {
+        if self.stack_need <= wide::STACK {
+            let mut stack = ArrayVec::<_, { wide::STACK }>::new();
+            kernel.closest_packet(&self.wide, rays, t_max, &mut stack, test);
+        } else {
+            let mut stack = Vec::with_capacity(self.stack_need);
+            kernel.closest_packet(&self.wide, rays, t_max, &mut stack, test);
+        }
+    }
+
+    /// Any-hit traversal of a packet of rays: the mask of the rays some
+    /// item blocks within their `t_max`.
+    #[inline]
+    pub(crate) fn any_packet_on(
+        &self,
+        kernel: Kernel,
+        rays: &NodePacket,
+        t_max: &[f64; PACKET],
+        test: impl PacketAnyTest,
+    ) -> u32 {
+        if self.stack_need <= wide::STACK {
+            let mut stack = ArrayVec::<_, { wide::STACK }>::new();
+            kernel.any_packet(&self.wide, rays, t_max, &mut stack, test)
+        } else {
+            let mut stack = Vec::with_capacity(self.stack_need);
+            kernel.any_packet(&self.wide, rays, t_max, &mut stack, test)
         }
     }
 }
@@ -569,6 +612,80 @@ mod tests {
             .collect();
         assert!(all.len() >= 2, "at least the four-lane and scalar paths");
         all
+    }
+
+    #[test]
+    fn the_packet_test_lets_through_every_box_a_ray_of_it_does() {
+        use crate::accel::simd::{
+            Lanes, NodePacket, PACKET, Scalar, packet_entries_scalar, ray_mask_scalar,
+        };
+        let bvh = Bvh::build(random_boxes(600, 17));
+        let mut rng = PixelRng::new(23, 0, 0);
+        let mut through = 0;
+        for i in 0..400 {
+            let base = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 120.0 - 10.0;
+            let aim = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 100.0;
+            let spread = [0.0, 0.01, 1.0, 20.0][i % 4];
+            let rays: Vec<(DVec3, DVec3)> = (0..PACKET)
+                .map(|_| {
+                    let o = base
+                        + if i % 2 == 0 {
+                            DVec3::ZERO
+                        } else {
+                            DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * spread
+                        };
+                    let mut d =
+                        aim + DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * spread - o;
+                    if i % 5 == 0 {
+                        d.y = 0.0; // the zero-component path
+                    }
+                    (o, d)
+                })
+                .collect();
+            let Some(packet) = NodePacket::new(&rays) else {
+                continue;
+            };
+            let t_max: [f64; PACKET] =
+                std::array::from_fn(|k| [f64::INFINITY, 50.0, 5.0][(i + k) % 3]);
+            let limits = t_max.map(NodeRay::box_limit);
+            let limit = limits.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+            for node in &bvh.wide {
+                let (mask, near) = packet_entries_scalar(node, &packet, limit);
+                for kernel in kernels() {
+                    let vector = match kernel {
+                        #[cfg(target_arch = "x86_64")]
+                        Kernel::Avx2(k) => k.packet_entries(node, &packet, limit),
+                        Kernel::Sse2 => simd::Sse2.packet_entries(node, &packet, limit),
+                        Kernel::Scalar => Scalar.packet_entries(node, &packet, limit),
+                    };
+                    assert_eq!(vector.0, mask);
+                    assert_eq!(vector.1.map(f32::to_bits), near.map(f32::to_bits));
+                }
+                for (k, &(o, d)) in rays.iter().enumerate() {
+                    let (own, own_near) = Scalar.entries(node, &NodeRay::new(o, d), limits[k]);
+                    assert_eq!(own & !mask, 0, "packet {i}, ray {k}");
+                    for slot in 0..wide::WIDTH {
+                        if own & (1 << slot) != 0 {
+                            assert!(near[slot] <= own_near[slot]);
+                            through += 1;
+                        }
+                        let rays_through = ray_mask_scalar(node, slot, &packet, &limits);
+                        assert_eq!(
+                            rays_through >> k & 1,
+                            own >> slot & 1,
+                            "packet {i}, ray {k}"
+                        );
+                        for kernel in kernels() {
+                            #[cfg(target_arch = "x86_64")]
+                            if let Kernel::Avx2(p) = kernel {
+                                assert_eq!(p.ray_mask(node, slot, &packet, &limits), rays_through);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(through > 10_000, "{through}");
     }
 
     #[test]

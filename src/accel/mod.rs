@@ -6,6 +6,7 @@
 //! by one beside it. Shading only sees [`Aggregate`].
 
 pub mod bvh;
+pub(crate) mod packet;
 mod primitive;
 mod shadow;
 pub(crate) mod simd;
@@ -13,7 +14,7 @@ mod wide;
 
 pub use primitive::{Primitive, Shape};
 pub use shadow::{Blocker, FeelerBatch, ShadowCandidates};
-pub use simd::{NodeRay, SimdPath, simd_path};
+pub use simd::{NodePacket, NodeRay, PACKET, SimdPath, simd_path};
 
 use bvh::Bvh;
 

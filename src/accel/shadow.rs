@@ -9,7 +9,7 @@
 
 use glam::DVec3;
 
-use super::{Aggregate, Shape, simd};
+use super::{Aggregate, PACKET, Shape, simd};
 use crate::geometry::Aabb;
 use crate::geometry::sphere::{sphere_blocks, sphere_first_root};
 use crate::math::Ray;
@@ -325,6 +325,29 @@ impl ShadowCandidates {
                             s.center,
                             s.radius,
                         );
+                    }
+                }
+                Shape::Mesh(m) => {
+                    // The open feelers, eight at a time, as packets: they
+                    // leave one point for one light, so they share their
+                    // node visits.
+                    let mut lanes = [0usize; PACKET];
+                    let mut rays = [feelers.ray(0); PACKET];
+                    let mut t_max = [0.0; PACKET];
+                    let mut len = 0;
+                    for k in 0..N {
+                        if feelers.active[k] && !blocked[k] {
+                            (lanes[len], rays[len], t_max[len]) =
+                                (k, feelers.ray(k), feelers.t_max[k]);
+                            len += 1;
+                        }
+                        if len == PACKET || (k == N - 1 && len > 0) {
+                            let hit = m.any_hit_packet(&rays[..len], 0.0, &t_max[..len]);
+                            for (j, &lane) in lanes[..len].iter().enumerate() {
+                                blocked[lane] |= hit >> j & 1 == 1;
+                            }
+                            len = 0;
+                        }
                     }
                 }
                 shape => {

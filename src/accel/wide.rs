@@ -33,9 +33,9 @@ pub struct WideNode {
     pub planes: [[f32; WIDTH]; 6],
     /// Interior child: its node index; leaf child: first item position;
     /// empty slot: `EMPTY`.
-    child: [u32; WIDTH],
+    pub(super) child: [u32; WIDTH],
     /// Leaf child: item count; interior child: 0.
-    count: [u16; WIDTH],
+    pub(super) count: [u16; WIDTH],
     /// Bit i set when slot i holds a child.
     pub valid: u32,
 }

@@ -64,6 +64,17 @@ impl MeshInstance {
         self.mesh.any_hit(origin, direction, t_min, t_max)
     }
 
+    /// [`any_hit`](Self::any_hit) for each of up to eight rays, traced
+    /// together (see [`Mesh::any_hit_packet`]): bit k set when ray k is
+    /// blocked within `t_max[k]`.
+    pub fn any_hit_packet(&self, rays: &[Ray], t_min: f64, t_max: &[f64]) -> u32 {
+        let mut local = [(glam::DVec3::ZERO, glam::DVec3::ZERO); crate::accel::PACKET];
+        for (l, ray) in local.iter_mut().zip(rays) {
+            *l = self.local(ray);
+        }
+        self.mesh.any_hit_packet(&local[..rays.len()], t_min, t_max)
+    }
+
     /// World-space bounds.
     pub fn bounds(&self) -> Aabb {
         let b = self.mesh.bounds();

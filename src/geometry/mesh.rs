@@ -6,10 +6,13 @@ use glam::{DVec2, DVec3};
 use thiserror::Error;
 
 use super::Aabb;
-use super::triangle::{TriangleHit, WatertightRay, triangle_hit};
-use crate::accel::NodeRay;
+use super::triangle::{
+    TriangleHit, WatertightLanes, WatertightRay, triangle_hit, triangle_hit_lanes,
+};
 use crate::accel::bvh::{AnyTest, Bvh, ClosestTest};
+use crate::accel::packet::{PacketAnyTest, PacketClosestTest};
 use crate::accel::simd::{self, Kernel};
+use crate::accel::{NodePacket, NodeRay, PACKET};
 
 /// What a loader hands over to build a mesh.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -280,6 +283,118 @@ impl Mesh {
             .any_on(kernel, &NodeRay::new(origin, direction), t_max, leaf)
     }
 
+    /// [`intersect`](Self::intersect) for each of up to [`PACKET`] rays
+    /// (`rays[k]` is origin and direction, `t_max[k]` its limit, `hits[k]`
+    /// its answer), traced
+    /// together: coherent rays (neighbouring camera rays, feelers from one
+    /// point) share their node visits. Each answer is, to the bit, what
+    /// `intersect` gives that ray alone.
+    pub fn intersect_packet(
+        &self,
+        rays: &[(DVec3, DVec3)],
+        t_min: f64,
+        t_max: &[f64],
+        hits: &mut [Option<MeshHit>],
+    ) {
+        self.intersect_packet_on(simd::kernel(), rays, t_min, t_max, hits);
+    }
+
+    /// [`intersect_packet`](Self::intersect_packet) on a given SIMD kernel.
+    pub(crate) fn intersect_packet_on(
+        &self,
+        kernel: Kernel,
+        rays: &[(DVec3, DVec3)],
+        t_min: f64,
+        t_max: &[f64],
+        hits: &mut [Option<MeshHit>],
+    ) {
+        assert!(rays.len() <= PACKET && t_max.len() == rays.len() && hits.len() == rays.len());
+        // Compiled for the kernel's instruction set, so that the per-ray
+        // set-up runs in vectors (the same operations, so the same bits).
+        kernel.vectorize(|| self.intersect_packet_here(kernel, rays, t_min, t_max, hits));
+    }
+
+    #[inline(always)]
+    fn intersect_packet_here(
+        &self,
+        kernel: Kernel,
+        rays: &[(DVec3, DVec3)],
+        t_min: f64,
+        t_max: &[f64],
+        hits: &mut [Option<MeshHit>],
+    ) {
+        let Some(packet) = NodePacket::new(rays) else {
+            for ((hit, &(o, d)), &t) in hits.iter_mut().zip(rays).zip(t_max) {
+                *hit = self.intersect_on(kernel, o, d, t_min, t);
+            }
+            return;
+        };
+        let watertight = watertight_rays(rays);
+        let mut leaf = ClosestTriangles {
+            mesh: self,
+            rays: watertight,
+            lanes: WatertightLanes::new(&watertight),
+            t_min,
+            best: [None; PACKET],
+            reach: [f64::NEG_INFINITY; PACKET],
+        };
+        leaf.reach[..t_max.len()].copy_from_slice(t_max);
+        let mut limits = leaf.reach;
+        self.bvh
+            .closest_packet_on(kernel, &packet, &mut limits, &mut leaf);
+        for (hit, best) in hits.iter_mut().zip(leaf.best) {
+            *hit = best.map(|(triangle, h)| self.surface(triangle, h.barycentric, h.t));
+        }
+    }
+
+    /// [`any_hit`](Self::any_hit) for each of up to [`PACKET`] rays, traced
+    /// together (see [`intersect_packet`](Self::intersect_packet)): bit k of
+    /// the answer is set when ray k is blocked.
+    pub fn any_hit_packet(&self, rays: &[(DVec3, DVec3)], t_min: f64, t_max: &[f64]) -> u32 {
+        self.any_hit_packet_on(simd::kernel(), rays, t_min, t_max)
+    }
+
+    /// [`any_hit_packet`](Self::any_hit_packet) on a given SIMD kernel.
+    pub(crate) fn any_hit_packet_on(
+        &self,
+        kernel: Kernel,
+        rays: &[(DVec3, DVec3)],
+        t_min: f64,
+        t_max: &[f64],
+    ) -> u32 {
+        assert!(rays.len() <= PACKET && t_max.len() == rays.len());
+        kernel.vectorize(|| self.any_hit_packet_here(kernel, rays, t_min, t_max))
+    }
+
+    #[inline(always)]
+    fn any_hit_packet_here(
+        &self,
+        kernel: Kernel,
+        rays: &[(DVec3, DVec3)],
+        t_min: f64,
+        t_max: &[f64],
+    ) -> u32 {
+        let Some(packet) = NodePacket::new(rays) else {
+            return rays
+                .iter()
+                .zip(t_max)
+                .enumerate()
+                .fold(0, |mask, (k, (&(o, d), &t))| {
+                    mask | u32::from(self.any_hit_on(kernel, o, d, t_min, t)) << k
+                });
+        };
+        let limits = std::array::from_fn(|k| t_max.get(k).copied().unwrap_or(f64::NEG_INFINITY));
+        let watertight = watertight_rays(rays);
+        let leaf = BlockingTriangles {
+            mesh: self,
+            rays: watertight,
+            lanes: WatertightLanes::new(&watertight),
+            t_min,
+            t_max: limits,
+        };
+        self.bvh.any_packet_on(kernel, &packet, &limits, leaf)
+    }
+
     fn surface(&self, triangle: usize, bary: DVec3, t: f64) -> MeshHit {
         let [ia, ib, ic] = self.triangles[triangle].map(|i| i as usize);
         let [a, b, c] = self.corners(triangle);
@@ -313,6 +428,17 @@ impl Mesh {
     }
 }
 
+/// `rays` prepared for the watertight test, lanes past the last repeating
+/// ray 0.
+#[inline(always)]
+fn watertight_rays(rays: &[(DVec3, DVec3)]) -> [WatertightRay; PACKET] {
+    let mut out = [WatertightRay::new(rays[0].0, rays[0].1); PACKET];
+    for (prepared, &(o, d)) in out.iter_mut().zip(rays).skip(1) {
+        *prepared = WatertightRay::new(o, d);
+    }
+    out
+}
+
 /// The closest-hit leaf test: the watertight test, keeping the nearest hit
 /// and, of hits at the same t, the triangle first in the mesh's own order.
 struct ClosestTriangle<'a> {
@@ -326,24 +452,98 @@ struct ClosestTriangle<'a> {
 impl ClosestTest for &mut ClosestTriangle<'_> {
     #[inline(always)]
     fn test(&mut self, position: usize, t_max: f64) -> Option<f64> {
-        let [a, b, c] = self.mesh.corners(position);
-        // Once a hit is held, one at the same t is looked for too.
-        let limit = if self.best.is_some() {
-            t_max.next_up()
-        } else {
-            t_max
-        };
-        let h = triangle_hit(&self.ray, a, b, c, self.t_min, limit)?;
-        let order = self.mesh.bvh.order();
-        if self
-            .best
-            .is_some_and(|(held, bh)| h.t == bh.t && order[held] < order[position])
-        {
-            return None;
-        }
-        self.best = Some((position, h));
-        Some(h.t)
+        closer_triangle(
+            self.mesh,
+            &self.ray,
+            self.t_min,
+            &mut self.best,
+            position,
+            t_max,
+        )
     }
+}
+
+/// The closest-hit leaf test of a packet: [`ClosestTriangle`]'s, ray by
+/// ray, or all rays at once where they share the watertight test's axes.
+struct ClosestTriangles<'a> {
+    mesh: &'a Mesh,
+    rays: [WatertightRay; PACKET],
+    lanes: Option<WatertightLanes>,
+    t_min: f64,
+    best: [Option<(usize, TriangleHit)>; PACKET],
+    /// Where the lanes look for hits: `t_max`, or just past it once a hit
+    /// is held (a hit at the same t is looked for too).
+    reach: [f64; PACKET],
+}
+
+impl PacketClosestTest for &mut ClosestTriangles<'_> {
+    #[inline(always)]
+    fn test(&mut self, rays: u32, position: usize, t_max: &mut [f64; PACKET]) -> u32 {
+        let mut closer = 0;
+        let Some(lanes) = &self.lanes else {
+            let mut scan = rays;
+            while scan != 0 {
+                let k = scan.trailing_zeros() as usize;
+                scan &= scan - 1;
+                let (ray, best) = (&self.rays[k], &mut self.best[k]);
+                if let Some(t) =
+                    closer_triangle(self.mesh, ray, self.t_min, best, position, t_max[k])
+                {
+                    t_max[k] = t;
+                    closer |= 1 << k;
+                }
+            }
+            return closer;
+        };
+        // What `closer_triangle` does, with the triangle test for all lanes
+        // at once.
+        let [a, b, c] = self.mesh.corners(position);
+        let hits = triangle_hit_lanes(lanes, rays, a, b, c, self.t_min, &self.reach);
+        let order = self.mesh.bvh.order();
+        let mut scan = hits.mask;
+        while scan != 0 {
+            let k = scan.trailing_zeros() as usize;
+            scan &= scan - 1;
+            let h = hits.hit(k);
+            let best = &mut self.best[k];
+            if best.is_some_and(|(held, bh)| h.t == bh.t && order[held] < order[position]) {
+                continue;
+            }
+            *best = Some((position, h));
+            t_max[k] = h.t;
+            self.reach[k] = h.t.next_up();
+            closer |= 1 << k;
+        }
+        closer
+    }
+}
+
+/// Tests the triangle at leaf position `position`; keeps it in `best` when
+/// it is nearer than the hit held there, or as near and first in the
+/// mesh's own order, and then returns its distance.
+#[inline(always)]
+fn closer_triangle(
+    mesh: &Mesh,
+    ray: &WatertightRay,
+    t_min: f64,
+    best: &mut Option<(usize, TriangleHit)>,
+    position: usize,
+    t_max: f64,
+) -> Option<f64> {
+    let [a, b, c] = mesh.corners(position);
+    // Once a hit is held, one at the same t is looked for too.
+    let limit = if best.is_some() {
+        t_max.next_up()
+    } else {
+        t_max
+    };
+    let h = triangle_hit(ray, a, b, c, t_min, limit)?;
+    let order = mesh.bvh.order();
+    if best.is_some_and(|(held, bh)| h.t == bh.t && order[held] < order[position]) {
+        return None;
+    }
+    *best = Some((position, h));
+    Some(h.t)
 }
 
 /// The any-hit leaf test.
@@ -359,6 +559,35 @@ impl AnyTest for BlockingTriangle<'_> {
     fn test(&mut self, position: usize) -> bool {
         let [a, b, c] = self.mesh.corners(position);
         triangle_hit(&self.ray, a, b, c, self.t_min, self.t_max).is_some()
+    }
+}
+
+/// The any-hit leaf test of a packet: [`BlockingTriangle`]'s, ray by ray,
+/// or all rays at once where they share the watertight test's axes.
+struct BlockingTriangles<'a> {
+    mesh: &'a Mesh,
+    rays: [WatertightRay; PACKET],
+    lanes: Option<WatertightLanes>,
+    t_min: f64,
+    t_max: [f64; PACKET],
+}
+
+impl PacketAnyTest for BlockingTriangles<'_> {
+    #[inline(always)]
+    fn test(&mut self, rays: u32, position: usize) -> u32 {
+        let [a, b, c] = self.mesh.corners(position);
+        if let Some(lanes) = &self.lanes {
+            return triangle_hit_lanes(lanes, rays, a, b, c, self.t_min, &self.t_max).mask;
+        }
+        let mut blocked = 0;
+        let mut scan = rays;
+        while scan != 0 {
+            let k = scan.trailing_zeros() as usize;
+            scan &= scan - 1;
+            let hit = triangle_hit(&self.rays[k], a, b, c, self.t_min, self.t_max[k]);
+            blocked |= u32::from(hit.is_some()) << k;
+        }
+        blocked
     }
 }
 
@@ -582,6 +811,109 @@ mod tests {
             }
         }
         assert!(hits > 10_000, "{hits}");
+    }
+
+    /// Bit-for-bit equality of two answers, the distance by its bits.
+    fn same_hit(a: Option<MeshHit>, b: Option<MeshHit>) -> bool {
+        a.map(|h| h.t.to_bits()) == b.map(|h| h.t.to_bits()) && a == b
+    }
+
+    #[test]
+    fn packets_answer_each_ray_as_it_is_answered_alone() {
+        // Packets of every kind the traversal treats apart: rays from one
+        // origin (a camera's tile, a point's feelers), from eight origins
+        // (shadow rays of neighbouring hits), of unlike signs (traced one
+        // by one), of unlike dominant axes (leaf tests one by one), short
+        // ones, and limits that end before the surface; rays aimed at
+        // vertices, edges and anywhere, on every SIMD path.
+        let data = bumpy_grid(24, 7);
+        let mesh = Mesh::new(data.clone()).unwrap();
+        let mut rng = crate::math::rng::PixelRng::new(29, 0, 0);
+        let (mut hits, mut blocked, mut rays_seen) = (0, 0, 0);
+        for i in 0..3_000 {
+            let len = if i % 5 == 0 { 1 + i % PACKET } else { PACKET };
+            let shared = DVec3::new(
+                rng.uniform() * 40.0 - 8.0,
+                0.5 + rng.uniform() * 10.0,
+                rng.uniform() * 40.0 - 8.0,
+            );
+            let spread = [0.0, 1e-3, 0.3, 30.0][i % 4];
+            let center = DVec3::new(rng.uniform() * 24.0, 0.15, rng.uniform() * 24.0);
+            let mut rays = Vec::new();
+            let mut t_max = Vec::new();
+            for k in 0..len {
+                let t = data.triangles[(rng.uniform() * data.triangles.len() as f64) as usize];
+                let [a, b, c] = t.map(|k| data.positions[k as usize]);
+                let target = match (i + k) % 4 {
+                    0 => a,
+                    1 => a + (b - a) * 0.5,
+                    2 => b + (c - b) * rng.uniform(),
+                    _ => {
+                        center + DVec3::new(rng.uniform() - 0.5, 0.0, rng.uniform() - 0.5) * spread
+                    }
+                };
+                let origin = if i % 3 == 0 {
+                    shared
+                } else {
+                    shared + DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * spread
+                };
+                rays.push((origin, target - origin));
+                t_max.push(if (i + k) % 7 == 0 {
+                    0.999
+                } else {
+                    f64::INFINITY
+                });
+            }
+            rays_seen += len;
+            for kernel in kernels() {
+                let mut together = [None; PACKET];
+                mesh.intersect_packet_on(kernel, &rays, 0.0, &t_max, &mut together[..len]);
+                let blocking = mesh.any_hit_packet_on(kernel, &rays, 0.0, &t_max);
+                assert_eq!(blocking >> len, 0);
+                for (k, &(o, d)) in rays.iter().enumerate() {
+                    let alone = mesh.intersect_on(kernel, o, d, 0.0, t_max[k]);
+                    assert!(
+                        same_hit(together[k], alone),
+                        "packet {i}, ray {k}, {kernel:?}"
+                    );
+                    let any = mesh.any_hit_on(kernel, o, d, 0.0, t_max[k]);
+                    assert_eq!(
+                        blocking >> k & 1 == 1,
+                        any,
+                        "packet {i}, ray {k}, {kernel:?}"
+                    );
+                    hits += usize::from(alone.is_some());
+                    blocked += usize::from(any);
+                }
+            }
+        }
+        // Most rays hit, and the limits leave some short.
+        let total = rays_seen * kernels().len();
+        assert!(hits > total / 2 && hits < total, "{hits} of {total}");
+        assert_eq!(hits, blocked);
+    }
+
+    #[test]
+    fn packets_keep_the_tie_break() {
+        // The duplicate triangle of the test below, hit by a packet of rays
+        // around its centre: each gets the lower index, as alone.
+        let mut data = bumpy_grid(8, 5);
+        let copy = data.triangles[77];
+        data.materials = vec![0; data.triangles.len()];
+        data.triangles.insert(0, copy);
+        data.materials.insert(0, 1);
+        let mesh = Mesh::new(data.clone()).unwrap();
+        let [a, b, c] = copy.map(|k| data.positions[k as usize]);
+        let target = (a + b + c) / 3.0;
+        let origin = target + DVec3::new(0.3, 5.0, -0.2);
+        let rays: Vec<_> = (0..PACKET)
+            .map(|k| (origin, target + (b - a) * (k as f64 * 0.01) - origin))
+            .collect();
+        for kernel in kernels() {
+            let mut hits = [None; PACKET];
+            mesh.intersect_packet_on(kernel, &rays, 0.0, &[f64::INFINITY; PACKET], &mut hits);
+            assert!(hits.iter().all(|h| h.unwrap().material == 1), "{kernel:?}");
+        }
     }
 
     #[test]

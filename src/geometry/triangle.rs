@@ -126,6 +126,133 @@ pub fn triangle_hit(
     })
 }
 
+/// Up to eight rays prepared for [`triangle_hit_lanes`]: rays whose
+/// largest direction component lies on the same axis with the same sign,
+/// so that they share the watertight test's axis permutation and each
+/// lane's arithmetic is [`triangle_hit`]'s for that ray.
+#[derive(Clone, Copy, Debug)]
+pub struct WatertightLanes {
+    /// The origins' coordinates on axes kx, ky, kz, lane by lane.
+    origin: [[f64; LANES]; 3],
+    sx: [f64; LANES],
+    sy: [f64; LANES],
+    sz: [f64; LANES],
+    /// The shared permutation.
+    axes: [usize; 3],
+}
+
+/// Rays per [`WatertightLanes`].
+pub const LANES: usize = 8;
+
+impl WatertightLanes {
+    /// The lanes of `rays` (lanes past the last repeat ray 0), or `None`
+    /// when the rays do not share one permutation.
+    #[inline(always)]
+    pub fn new(rays: &[WatertightRay; LANES]) -> Option<Self> {
+        let first = &rays[0];
+        let axes = [first.kx, first.ky, first.kz];
+        if rays.iter().any(|r| [r.kx, r.ky, r.kz] != axes) {
+            return None;
+        }
+        Some(WatertightLanes {
+            origin: axes.map(|axis| rays.map(|r| r.origin.to_array()[axis & 3])),
+            sx: rays.map(|r| r.sx),
+            sy: rays.map(|r| r.sy),
+            sz: rays.map(|r| r.sz),
+            axes,
+        })
+    }
+}
+
+/// What [`triangle_hit_lanes`] finds: a mask of the lanes that hit, and
+/// each lane's scaled barycentrics, their sum and the distance (meaningful
+/// only in a lane that hits).
+#[derive(Clone, Copy, Debug)]
+pub struct LaneHits {
+    /// Bit k set when lane k hits with t in (t_min, t_max[k]).
+    pub mask: u32,
+    u: [f64; LANES],
+    v: [f64; LANES],
+    w: [f64; LANES],
+    det: [f64; LANES],
+    t: [f64; LANES],
+}
+
+impl LaneHits {
+    /// Lane `k`'s hit, as [`triangle_hit`] gives it for that ray.
+    #[inline(always)]
+    pub fn hit(&self, k: usize) -> TriangleHit {
+        TriangleHit {
+            t: self.t[k],
+            barycentric: DVec3::new(self.u[k], self.v[k], self.w[k]) / self.det[k],
+        }
+    }
+}
+
+/// [`triangle_hit`] of triangle (a, b, c) for each lane of `rays` in mask
+/// `active`, lane `k` keeping hits with t in (t_min, t_max[k]): the same
+/// operations, lane by lane, in a form the compiler turns into vector code
+/// (no early exit: every lane runs to the end and the conditions become a
+/// mask), so each lane's answer is the scalar one to the bit.
+#[inline(always)]
+pub fn triangle_hit_lanes(
+    rays: &WatertightLanes,
+    active: u32,
+    a: DVec3,
+    b: DVec3,
+    c: DVec3,
+    t_min: f64,
+    t_max: &[f64; LANES],
+) -> LaneHits {
+    let [kx, ky, kz] = rays.axes.map(|k| k & 3);
+    let pick = |p: DVec3| {
+        let p = [p.x, p.y, p.z, 0.0];
+        (p[kx], p[ky], p[kz])
+    };
+    let (a, b, c) = (pick(a), pick(b), pick(c));
+    let [ox, oy, oz] = &rays.origin;
+    let mut out = LaneHits {
+        mask: 0,
+        u: [0.0; LANES],
+        v: [0.0; LANES],
+        w: [0.0; LANES],
+        det: [0.0; LANES],
+        t: [0.0; LANES],
+    };
+    let mut hit = [false; LANES];
+    for k in 0..LANES {
+        let (ax, ay, az) = (a.0 - ox[k], a.1 - oy[k], a.2 - oz[k]);
+        let (bx, by, bz) = (b.0 - ox[k], b.1 - oy[k], b.2 - oz[k]);
+        let (cx, cy, cz) = (c.0 - ox[k], c.1 - oy[k], c.2 - oz[k]);
+        let (sx, sy, sz) = (rays.sx[k], rays.sy[k], rays.sz[k]);
+        let ax = ax - sx * az;
+        let ay = ay - sy * az;
+        let bx = bx - sx * bz;
+        let by = by - sy * bz;
+        let cx = cx - sx * cz;
+        let cy = cy - sy * cz;
+        let u = cx * by - cy * bx;
+        let v = ax * cy - ay * cx;
+        let w = bx * ay - by * ax;
+        let negative = (u < 0.0) | (v < 0.0) | (w < 0.0);
+        let positive = (u > 0.0) | (v > 0.0) | (w > 0.0);
+        let det = u + v + w;
+        let t_scaled = u * (sz * az) + v * (sz * bz) + w * (sz * cz);
+        let t = t_scaled / det;
+        hit[k] = !(negative & positive) & (det != 0.0) & (t > t_min) & (t < t_max[k]);
+        out.u[k] = u;
+        out.v[k] = v;
+        out.w[k] = w;
+        out.det[k] = det;
+        out.t[k] = t;
+    }
+    for (k, &h) in hit.iter().enumerate() {
+        out.mask |= u32::from(h) << k;
+    }
+    out.mask &= active;
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -272,5 +399,54 @@ mod tests {
             }
         }
         assert!(hits > 5000, "{hits} hits");
+    }
+
+    #[test]
+    fn lanes_are_the_scalar_test_to_the_bit() {
+        // Eight rays sharing a dominant axis against random triangles,
+        // aimed inside, at vertices, at edges and beside them, with limits
+        // before, at and beyond the surface.
+        let mut rng = PixelRng::new(31, 0, 0);
+        let mut u = || rng.uniform();
+        let mut hits = 0;
+        for i in 0..20_000 {
+            let scale = [1e-3, 1.0, 1e4][i % 3];
+            let tri = [0; 3].map(|_| DVec3::new(u(), u(), u()) * scale);
+            let axis = i % 3;
+            let sign = if i % 2 == 0 { 1.0 } else { -1.0 };
+            let mut rays = [WatertightRay::new(DVec3::ZERO, DVec3::X); LANES];
+            let mut t_max = [f64::INFINITY; LANES];
+            for (k, ray) in rays.iter_mut().enumerate() {
+                let (a, b, c) = (tri[0], tri[1], tri[2]);
+                let target = match k % 4 {
+                    0 => a,
+                    1 => a + (b - a) * u(),
+                    2 => a * 0.2 + b * 0.3 + c * 0.5,
+                    _ => a + (c - a) * 0.5 + DVec3::splat(1e-9 * scale),
+                };
+                let mut offset = DVec3::new(u() - 0.5, u() - 0.5, u() - 0.5) * 0.5;
+                offset[axis] = sign * (1.0 + u());
+                let origin = target + offset * scale * 3.0;
+                *ray = WatertightRay::new(origin, target - origin);
+                t_max[k] = [f64::INFINITY, 1.0, 0.5, 1.0f64.next_up()][(i + k) % 4];
+            }
+            let Some(lanes) = WatertightLanes::new(&rays) else {
+                continue;
+            };
+            let active = if i % 7 == 0 { 0b1011_0110 } else { 0xff };
+            let found = triangle_hit_lanes(&lanes, active, tri[0], tri[1], tri[2], 1e-12, &t_max);
+            for k in 0..LANES {
+                let alone = triangle_hit(&rays[k], tri[0], tri[1], tri[2], 1e-12, t_max[k]);
+                let lane = (found.mask >> k & 1 == 1).then(|| found.hit(k));
+                let expected = alone.filter(|_| active >> k & 1 == 1);
+                assert_eq!(
+                    lane.map(|h| (h.t.to_bits(), h.barycentric.to_array().map(f64::to_bits))),
+                    expected.map(|h| (h.t.to_bits(), h.barycentric.to_array().map(f64::to_bits))),
+                    "case {i}, lane {k}"
+                );
+                hits += usize::from(lane.is_some());
+            }
+        }
+        assert!(hits > 50_000, "{hits}");
     }
 }

@@ -7,7 +7,8 @@
 
 use std::arch::x86_64::*;
 
-use super::{Lanes, NodeRay, SLACK};
+use super::{Lanes, NodePacket, NodeRay, PACKET, SLACK};
+use crate::accel::packet::{self, PacketAnyTest, PacketClosestTest, PacketEntry};
 use crate::accel::wide::{self, AnyTest, ClosestTest, Stack, StackEntry, WIDTH, WideNode};
 
 /// Proof that this CPU runs AVX2: made only by [`Avx2::detect`].
@@ -44,6 +45,29 @@ impl Lanes for Avx2 {
     fn entries(self, node: &WideNode, ray: &NodeRay, limit: f32) -> (u32, [f32; WIDTH]) {
         // SAFETY: `self` exists only where `detect` found AVX2.
         unsafe { entries(node, ray, limit) }
+    }
+
+    #[inline(always)]
+    fn packet_entries(
+        self,
+        node: &WideNode,
+        packet: &NodePacket,
+        limit: f32,
+    ) -> (u32, [f32; WIDTH]) {
+        // SAFETY: `self` exists only where `detect` found AVX2.
+        unsafe { packet_entries(node, packet, limit) }
+    }
+
+    #[inline(always)]
+    fn ray_mask(
+        self,
+        node: &WideNode,
+        slot: usize,
+        packet: &NodePacket,
+        limits: &[f32; PACKET],
+    ) -> u32 {
+        // SAFETY: `self` exists only where `detect` found AVX2.
+        unsafe { ray_mask(node, slot, packet, limits) }
     }
 
     #[inline(always)]
@@ -103,6 +127,140 @@ unsafe fn entries(node: &WideNode, ray: &NodeRay, limit: f32) -> (u32, [f32; WID
     }
 }
 
+/// `super::packet_entries_scalar`, eight boxes at once: the same
+/// operations lane by lane.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[inline(always)]
+unsafe fn packet_entries(node: &WideNode, p: &NodePacket, limit: f32) -> (u32, [f32; WIDTH]) {
+    // SAFETY (every block below): the caller guarantees AVX2; the loads
+    // and the store read and write eight f32 of arrays of that size.
+    unsafe {
+        let near = _mm256_max_ps(
+            _mm256_max_ps(
+                _mm256_max_ps(
+                    interval_lo(node, p, p.near_row[0], 0),
+                    interval_lo(node, p, p.near_row[1], 1),
+                ),
+                interval_lo(node, p, p.near_row[2], 2),
+            ),
+            _mm256_setzero_ps(),
+        );
+        let far = _mm256_mul_ps(
+            _mm256_min_ps(
+                _mm256_min_ps(
+                    interval_hi(node, p, p.far_row[0], 0),
+                    interval_hi(node, p, p.far_row[1], 1),
+                ),
+                interval_hi(node, p, p.far_row[2], 2),
+            ),
+            _mm256_set1_ps(SLACK),
+        );
+        let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(near, _mm256_min_ps(far, _mm256_set1_ps(limit)));
+        let mask = _mm256_movemask_ps(hit) as u32 & node.valid;
+        let mut out = [0.0f32; WIDTH];
+        _mm256_storeu_ps(out.as_mut_ptr(), near);
+        (mask, out)
+    }
+}
+
+/// The four corner products of the packet's distances to plane row `row`
+/// of each box (helpers are functions, not closures: a closure left out of
+/// line would not be compiled for AVX2, and nor would the intrinsics in it).
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[inline(always)]
+unsafe fn interval_products(
+    node: &WideNode,
+    p: &NodePacket,
+    row: usize,
+    axis: usize,
+) -> [__m256; 4] {
+    // SAFETY: the caller guarantees AVX2; the load reads eight f32.
+    unsafe {
+        let plane = _mm256_loadu_ps(node.planes[row].as_ptr());
+        let x0 = _mm256_sub_ps(plane, _mm256_set1_ps(p.origin_hi[axis]));
+        let x1 = _mm256_sub_ps(plane, _mm256_set1_ps(p.origin_lo[axis]));
+        let (i0, i1) = (
+            _mm256_set1_ps(p.inv_lo[axis]),
+            _mm256_set1_ps(p.inv_hi[axis]),
+        );
+        [
+            _mm256_mul_ps(x0, i0),
+            _mm256_mul_ps(x0, i1),
+            _mm256_mul_ps(x1, i0),
+            _mm256_mul_ps(x1, i1),
+        ]
+    }
+}
+
+/// The least of [`interval_products`].
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[inline(always)]
+unsafe fn interval_lo(node: &WideNode, p: &NodePacket, row: usize, axis: usize) -> __m256 {
+    // SAFETY: the caller guarantees AVX2.
+    unsafe {
+        let [a, b, c, d] = interval_products(node, p, row, axis);
+        _mm256_min_ps(_mm256_min_ps(a, b), _mm256_min_ps(c, d))
+    }
+}
+
+/// The greatest of [`interval_products`].
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[inline(always)]
+unsafe fn interval_hi(node: &WideNode, p: &NodePacket, row: usize, axis: usize) -> __m256 {
+    // SAFETY: the caller guarantees AVX2.
+    unsafe {
+        let [a, b, c, d] = interval_products(node, p, row, axis);
+        _mm256_max_ps(_mm256_max_ps(a, b), _mm256_max_ps(c, d))
+    }
+}
+
+/// `super::ray_mask_scalar`, eight rays at once: the same operations lane
+/// by lane.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[inline(always)]
+unsafe fn ray_mask(node: &WideNode, slot: usize, p: &NodePacket, limits: &[f32; PACKET]) -> u32 {
+    // SAFETY (every block below): the caller guarantees AVX2; the loads
+    // read eight f32 of arrays of that size.
+    unsafe {
+        let t = |row: usize, axis: usize| {
+            _mm256_mul_ps(
+                _mm256_sub_ps(
+                    _mm256_set1_ps(node.planes[row][slot]),
+                    _mm256_loadu_ps(p.origin[axis].as_ptr()),
+                ),
+                _mm256_loadu_ps(p.inv_dir[axis].as_ptr()),
+            )
+        };
+        let near = _mm256_max_ps(
+            _mm256_max_ps(
+                _mm256_max_ps(t(p.near_row[0], 0), t(p.near_row[1], 1)),
+                t(p.near_row[2], 2),
+            ),
+            _mm256_setzero_ps(),
+        );
+        let far = _mm256_mul_ps(
+            _mm256_min_ps(
+                _mm256_min_ps(t(p.far_row[0], 0), t(p.far_row[1], 1)),
+                t(p.far_row[2], 2),
+            ),
+            _mm256_set1_ps(SLACK),
+        );
+        let limit = _mm256_loadu_ps(limits.as_ptr());
+        let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(near, _mm256_min_ps(far, limit));
+        _mm256_movemask_ps(hit) as u32 & p.present
+    }
+}
+
 /// `wide::closest` compiled for AVX2.
 #[inline]
 pub fn closest(
@@ -151,4 +309,54 @@ pub fn any(
     }
     // SAFETY: `proof` exists only where `detect` found AVX2.
     unsafe { run(proof, nodes, ray, t_max, stack, test) }
+}
+
+/// `packet::closest` compiled for AVX2.
+#[inline]
+pub fn closest_packet(
+    proof: Avx2,
+    nodes: &[WideNode],
+    rays: &NodePacket,
+    t_max: &mut [f64; PACKET],
+    stack: &mut impl Stack<PacketEntry>,
+    test: impl PacketClosestTest,
+) {
+    #[target_feature(enable = "avx2")]
+    fn run(
+        proof: Avx2,
+        nodes: &[WideNode],
+        rays: &NodePacket,
+        t_max: &mut [f64; PACKET],
+        stack: &mut impl Stack<PacketEntry>,
+        test: impl PacketClosestTest,
+    ) {
+        packet::closest(proof, nodes, rays, t_max, stack, test)
+    }
+    // SAFETY: `proof` exists only where `detect` found AVX2.
+    unsafe { run(proof, nodes, rays, t_max, stack, test) }
+}
+
+/// `packet::any` compiled for AVX2.
+#[inline]
+pub fn any_packet(
+    proof: Avx2,
+    nodes: &[WideNode],
+    rays: &NodePacket,
+    t_max: &[f64; PACKET],
+    stack: &mut impl Stack<(u32, u32)>,
+    test: impl PacketAnyTest,
+) -> u32 {
+    #[target_feature(enable = "avx2")]
+    fn run(
+        proof: Avx2,
+        nodes: &[WideNode],
+        rays: &NodePacket,
+        t_max: &[f64; PACKET],
+        stack: &mut impl Stack<(u32, u32)>,
+        test: impl PacketAnyTest,
+    ) -> u32 {
+        packet::any(proof, nodes, rays, t_max, stack, test)
+    }
+    // SAFETY: `proof` exists only where `detect` found AVX2.
+    unsafe { run(proof, nodes, rays, t_max, stack, test) }
 }

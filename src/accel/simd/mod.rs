@@ -18,6 +18,7 @@ use std::sync::OnceLock;
 
 use glam::{DVec3, Vec4};
 
+use super::packet::{self, PacketAnyTest, PacketClosestTest, PacketEntry};
 use super::wide::{self, AnyTest, ClosestTest, MAX_X, MIN_X, Stack, StackEntry, WIDTH, WideNode};
 
 /// An instruction set for the wide node test.
@@ -148,6 +149,44 @@ impl Kernel {
     }
 }
 
+impl Kernel {
+    /// Closest-hit traversal of a packet (see `packet::closest`).
+    #[inline]
+    pub(crate) fn closest_packet(
+        self,
+        nodes: &[WideNode],
+        rays: &NodePacket,
+        t_max: &mut [f64; PACKET],
+        stack: &mut impl Stack<PacketEntry>,
+        test: impl PacketClosestTest,
+    ) {
+        match self {
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2(k) => avx2::closest_packet(k, nodes, rays, t_max, stack, test),
+            Kernel::Sse2 => packet::closest(Sse2, nodes, rays, t_max, stack, test),
+            Kernel::Scalar => packet::closest(Scalar, nodes, rays, t_max, stack, test),
+        }
+    }
+
+    /// Any-hit traversal of a packet (see `packet::any`): the blocked rays.
+    #[inline]
+    pub(crate) fn any_packet(
+        self,
+        nodes: &[WideNode],
+        rays: &NodePacket,
+        t_max: &[f64; PACKET],
+        stack: &mut impl Stack<(u32, u32)>,
+        test: impl PacketAnyTest,
+    ) -> u32 {
+        match self {
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2(k) => avx2::any_packet(k, nodes, rays, t_max, stack, test),
+            Kernel::Sse2 => packet::any(Sse2, nodes, rays, t_max, stack, test),
+            Kernel::Scalar => packet::any(Scalar, nodes, rays, t_max, stack, test),
+        }
+    }
+}
+
 /// A ray prepared for wide node tests, in f32.
 #[derive(Clone, Copy, Debug)]
 pub struct NodeRay {
@@ -169,25 +208,8 @@ impl NodeRay {
     /// Prepares `origin + t·direction`.
     #[inline]
     pub fn new(origin: DVec3, direction: DVec3) -> Self {
-        // A zero component would give 0·∞ = NaN on a slab through the
-        // origin; a huge finite value of the same sign gives the right
-        // answer (0 at the slab, ±∞ beyond it) in f32.
-        let inv = |d: f64| {
-            let i = (1.0 / d) as f32;
-            if i.is_finite() {
-                i
-            } else {
-                1e30f32.copysign(d as f32)
-            }
-        };
-        let inv_dir = direction.to_array().map(inv);
-        let near_row = [0, 1, 2].map(|a| {
-            if inv_dir[a] >= 0.0 {
-                MIN_X + a
-            } else {
-                MAX_X + a
-            }
-        });
+        let inv_dir = direction.to_array().map(inverse);
+        let near_row = [0, 1, 2].map(|a| near_row(inv_dir[a], a));
         NodeRay {
             origin: origin.as_vec3().to_array(),
             inv_dir,
@@ -206,6 +228,225 @@ impl NodeRay {
     }
 }
 
+/// Rays in a packet: one per lane of the per-ray box test.
+pub const PACKET: usize = 8;
+
+/// Up to [`PACKET`] rays prepared for wide node tests together: per axis,
+/// the interval of their f32 origins and inverse directions (one test of a
+/// node's eight boxes then answers for the whole packet), and the rays one
+/// by one, lane k holding ray k (one test of a single box then answers for
+/// each ray).
+#[derive(Clone, Copy, Debug)]
+pub struct NodePacket {
+    origin_lo: [f32; 3],
+    origin_hi: [f32; 3],
+    inv_lo: [f32; 3],
+    inv_hi: [f32; 3],
+    /// Shared by every ray of the packet.
+    near_row: [usize; 3],
+    far_row: [usize; 3],
+    /// `origin[axis][k]` of ray k; lanes past the last ray repeat ray 0.
+    origin: [[f32; PACKET]; 3],
+    inv_dir: [[f32; PACKET]; 3],
+    /// Bit k set when lane k holds a ray.
+    present: u32,
+}
+
+impl NodePacket {
+    /// The packet of `rays` (origin, direction), or `None` when they
+    /// cannot share one: none or more than [`PACKET`] rays, rays entering
+    /// boxes through different planes on some axis (directions of unlike
+    /// sign), or values that could make an interval product NaN (an origin
+    /// beyond 10³⁰, an inverse direction of 0). Each ray's lane holds what
+    /// [`NodeRay::new`] makes of it.
+    #[inline(always)]
+    pub fn new(rays: &[(DVec3, DVec3)]) -> Option<Self> {
+        let &(first_origin, first_direction) = rays.first()?;
+        if rays.len() > PACKET {
+            return None;
+        }
+        // Lanes past the last ray repeat ray 0, which changes no interval.
+        let mut o64 = [[0.0; PACKET]; 3];
+        let mut d64 = [[0.0; PACKET]; 3];
+        for k in 0..PACKET {
+            let (o, d) = if k < rays.len() {
+                rays[k]
+            } else {
+                (first_origin, first_direction)
+            };
+            for (axis, (o, d)) in o.to_array().into_iter().zip(d.to_array()).enumerate() {
+                o64[axis][k] = o;
+                d64[axis][k] = d;
+            }
+        }
+        // Loops rather than `map`, which stays a call and is not vectorised.
+        let mut origin = [[0.0; PACKET]; 3];
+        let mut inv_dir = [[0.0; PACKET]; 3];
+        for axis in 0..3 {
+            for k in 0..PACKET {
+                origin[axis][k] = o64[axis][k] as f32;
+                inv_dir[axis][k] = inverse(d64[axis][k]);
+            }
+        }
+        let near_row = [
+            near_row(inv_dir[0][0], 0),
+            near_row(inv_dir[1][0], 1),
+            near_row(inv_dir[2][0], 2),
+        ];
+        let mut fits = true;
+        for axis in 0..3 {
+            let positive = inv_dir[axis][0] >= 0.0;
+            for k in 0..PACKET {
+                let i = inv_dir[axis][k];
+                fits &= ((i >= 0.0) == positive)
+                    & (origin[axis][k].abs() < 1e30)
+                    & (i.abs() > 0.0)
+                    & (i.abs() <= f32::MAX);
+            }
+        }
+        if !fits {
+            return None;
+        }
+        let (mut origin_lo, mut origin_hi) = ([0.0; 3], [0.0; 3]);
+        let (mut inv_lo, mut inv_hi) = ([0.0; 3], [0.0; 3]);
+        for axis in 0..3 {
+            let (o, i) = (&origin[axis], &inv_dir[axis]);
+            (origin_lo[axis], origin_hi[axis]) = (o[0], o[0]);
+            (inv_lo[axis], inv_hi[axis]) = (i[0], i[0]);
+            for k in 1..PACKET {
+                origin_lo[axis] = min(origin_lo[axis], o[k]);
+                origin_hi[axis] = max(origin_hi[axis], o[k]);
+                inv_lo[axis] = min(inv_lo[axis], i[k]);
+                inv_hi[axis] = max(inv_hi[axis], i[k]);
+            }
+        }
+        Some(NodePacket {
+            origin_lo,
+            origin_hi,
+            inv_lo,
+            inv_hi,
+            near_row,
+            far_row: [0, 1, 2].map(|a| (near_row[a] + 3) % 6),
+            origin,
+            inv_dir,
+            present: (1 << rays.len()) - 1,
+        })
+    }
+
+    /// Bit k set when lane k holds a ray.
+    pub fn present(&self) -> u32 {
+        self.present
+    }
+
+    /// Whether every ray starts at the same point.
+    #[inline(always)]
+    pub fn shares_origin(&self) -> bool {
+        self.origin_lo == self.origin_hi
+    }
+}
+
+/// The packet test of one node, one lane at a time: the reference the
+/// vector forms match. Per box, a lower bound of every ray's entry and an
+/// upper bound of every ray's exit, by interval arithmetic: a ray's
+/// distance to a plane, fl(fl(plane − o)·inv), is bilinear in o and inv
+/// before rounding, so it is bounded by the products at the interval's
+/// corners, and rounding is monotone. So a box a ray's own test lets
+/// through (with its limit, at most `limit`) is let through here too.
+#[inline(always)]
+pub(crate) fn packet_entries_scalar(
+    node: &WideNode,
+    p: &NodePacket,
+    limit: f32,
+) -> (u32, [f32; WIDTH]) {
+    let mut near = [0.0; WIDTH];
+    let mut mask = 0;
+    for (lane, near) in near.iter_mut().enumerate() {
+        let products = |row: usize, axis: usize| {
+            let plane = node.planes[row][lane];
+            let (x0, x1) = (plane - p.origin_hi[axis], plane - p.origin_lo[axis]);
+            let (i0, i1) = (p.inv_lo[axis], p.inv_hi[axis]);
+            [x0 * i0, x0 * i1, x1 * i0, x1 * i1]
+        };
+        let lo = |row: usize, axis: usize| {
+            let [a, b, c, d] = products(row, axis);
+            min(min(a, b), min(c, d))
+        };
+        let hi = |row: usize, axis: usize| {
+            let [a, b, c, d] = products(row, axis);
+            max(max(a, b), max(c, d))
+        };
+        let n = max(
+            max(
+                max(lo(p.near_row[0], 0), lo(p.near_row[1], 1)),
+                lo(p.near_row[2], 2),
+            ),
+            0.0,
+        );
+        let f = min(
+            min(hi(p.far_row[0], 0), hi(p.far_row[1], 1)),
+            hi(p.far_row[2], 2),
+        ) * SLACK;
+        mask |= u32::from(n <= min(f, limit)) << lane;
+        *near = n;
+    }
+    (mask & node.valid, near)
+}
+
+/// Which rays of the packet meet slot `slot` of `node` before their own
+/// limit: for each ray, exactly [`Scalar`]'s test of that box.
+#[inline(always)]
+pub(crate) fn ray_mask_scalar(
+    node: &WideNode,
+    slot: usize,
+    p: &NodePacket,
+    limits: &[f32; PACKET],
+) -> u32 {
+    let mut mask = 0;
+    for (k, &limit) in limits.iter().enumerate() {
+        let t = |row: usize, axis: usize| {
+            (node.planes[row][slot] - p.origin[axis][k]) * p.inv_dir[axis][k]
+        };
+        let n = max(
+            max(
+                max(t(p.near_row[0], 0), t(p.near_row[1], 1)),
+                t(p.near_row[2], 2),
+            ),
+            0.0,
+        );
+        let f = min(
+            min(t(p.far_row[0], 0), t(p.far_row[1], 1)),
+            t(p.far_row[2], 2),
+        ) * SLACK;
+        mask |= u32::from(n <= min(f, limit)) << k;
+    }
+    mask & p.present
+}
+
+/// 1/d in f32, as node tests use it. A zero component would give
+/// 0·∞ = NaN on a slab through the origin; a huge finite value of the same
+/// sign gives the right answer (0 at the slab, ±∞ beyond it) in f32.
+#[inline(always)]
+fn inverse(d: f64) -> f32 {
+    let i = (1.0 / d) as f32;
+    if i.is_finite() {
+        i
+    } else {
+        1e30f32.copysign(d as f32)
+    }
+}
+
+/// The plane row of axis `axis` a ray with inverse direction `inv`
+/// enters boxes through: the minimum for a positive direction, else the
+/// maximum.
+#[inline(always)]
+fn near_row(inv: f32, axis: usize) -> usize {
+    if inv >= 0.0 {
+        MIN_X + axis
+    } else {
+        MAX_X + axis
+    }
+}
+
 /// One way of computing a node's eight entry distances: a lane mask of the
 /// boxes the ray meets before `limit`, and the distances. Every
 /// implementation computes, lane by lane, exactly [`Scalar`]'s operations.
@@ -215,6 +456,32 @@ pub(crate) trait Lanes: Copy {
     /// Asks the cache for a node that will be visited later (a hint only).
     #[inline(always)]
     fn prefetch(self, _node: &WideNode) {}
+
+    /// The packet's test of a node: a lane mask of the boxes some ray of
+    /// `packet` may meet before `limit`, and a lower bound of their entry
+    /// distances (see [`packet_entries_scalar`], which every form matches).
+    #[inline(always)]
+    fn packet_entries(
+        self,
+        node: &WideNode,
+        packet: &NodePacket,
+        limit: f32,
+    ) -> (u32, [f32; WIDTH]) {
+        packet_entries_scalar(node, packet, limit)
+    }
+
+    /// The rays of `packet` whose own test lets slot `slot` of `node`
+    /// through (see [`ray_mask_scalar`], which every form matches).
+    #[inline(always)]
+    fn ray_mask(
+        self,
+        node: &WideNode,
+        slot: usize,
+        packet: &NodePacket,
+        limits: &[f32; PACKET],
+    ) -> u32 {
+        ray_mask_scalar(node, slot, packet, limits)
+    }
 }
 
 /// `a > b ? a : b` and `a < b ? a : b`: the SSE and AVX max and min, to the
