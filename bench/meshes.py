@@ -8,7 +8,10 @@ For each: Prism (examples/meshbench.rs) loads, builds and times (a) primary
 camera rays 1024x1024, (b) incoherent rays, (c) shadow any-hit rays, single
 threaded and on all threads; then Embree builds and traces the very same
 rays (embreex traces on one thread, so the single-threaded ratio is the
-like-for-like one). Prints one table with Prism/Embree ratios, and the
+like-for-like one). Prism's primary and shadow rays are also traced in
+packets of eight (camera rays in 4x2 tiles, shadow rays of neighbouring
+hits), as Mitsuba traces its batches; those rows still divide by Embree's
+one-ray-at-a-time rate. Prints one table with Prism/Embree ratios, and the
 obvhs crate's compressed wide BVH on the same rays (one thread), the
 candidate replacement for Prism's own BVH, and Mitsuba 3 (its LLVM variant,
 one thread: closest hits and any-hit `ray_test`) where it can run.
@@ -181,6 +184,15 @@ def main():
             agree = abs(hits - p["hits"]) <= max(2, len(o) * 1e-3)
             rows.append((name, f"{kind} Mrays/s (1 thread, all threads)", p["mrays_1"], p["mrays_n"], e_rate,
                          (p["mrays_1"] / e_rate, agree)))
+            if kind in ("primary", "shadow"):
+                # The same rays traced by Prism in packets of eight (camera
+                # rays in 4x2 tiles), against Embree one ray at a time.
+                pk = prism["packets"]
+                rows.append((name, f"{kind} in packets of 8 Mrays/s", pk[f"{kind}_mrays_1"], pk[f"{kind}_mrays_n"],
+                             e_rate, (pk[f"{kind}_mrays_1"] / e_rate, agree)))
+                if isinstance(mi, dict):
+                    notes.append(f"{name}: {kind} in packets of 8, Prism/Mitsuba "
+                                 f"{pk[kind + '_mrays_1'] / mi[kind][0]:.2f}x")
     print(f"{'mesh':<11} {'measure':<38} {'prism':>10} {'prism all':>10} {'embree':>10} {'prism/embree':>13} {'hits agree':>10}")
     for name, what, a, b, e, ratio in rows:
         fmt = lambda v: f"{v:>10.3f}" if isinstance(v, float) else (f"{v:>10}" if v is not None else " " * 10)

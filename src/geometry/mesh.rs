@@ -463,6 +463,10 @@ impl ClosestTest for &mut ClosestTriangle<'_> {
     }
 }
 
+/// The fewest rays a triangle is tested against in eight lanes at once;
+/// fewer are tested one by one (eight lanes cost about three rays' tests).
+const LANES_FROM: u32 = 3;
+
 /// The closest-hit leaf test of a packet: [`ClosestTriangle`]'s, ray by
 /// ray, or all rays at once where they share the watertight test's axes.
 struct ClosestTriangles<'a> {
@@ -480,7 +484,11 @@ impl PacketClosestTest for &mut ClosestTriangles<'_> {
     #[inline(always)]
     fn test(&mut self, rays: u32, position: usize, t_max: &mut [f64; PACKET]) -> u32 {
         let mut closer = 0;
-        let Some(lanes) = &self.lanes else {
+        let lanes = self
+            .lanes
+            .as_ref()
+            .filter(|_| rays.count_ones() >= LANES_FROM);
+        let Some(lanes) = lanes else {
             let mut scan = rays;
             while scan != 0 {
                 let k = scan.trailing_zeros() as usize;
@@ -490,6 +498,7 @@ impl PacketClosestTest for &mut ClosestTriangles<'_> {
                     closer_triangle(self.mesh, ray, self.t_min, best, position, t_max[k])
                 {
                     t_max[k] = t;
+                    self.reach[k] = t.next_up();
                     closer |= 1 << k;
                 }
             }
@@ -576,7 +585,11 @@ impl PacketAnyTest for BlockingTriangles<'_> {
     #[inline(always)]
     fn test(&mut self, rays: u32, position: usize) -> u32 {
         let [a, b, c] = self.mesh.corners(position);
-        if let Some(lanes) = &self.lanes {
+        if let Some(lanes) = self
+            .lanes
+            .as_ref()
+            .filter(|_| rays.count_ones() >= LANES_FROM)
+        {
             return triangle_hit_lanes(lanes, rays, a, b, c, self.t_min, &self.t_max).mask;
         }
         let mut blocked = 0;
@@ -826,9 +839,30 @@ mod tests {
         // by one), of unlike dominant axes (leaf tests one by one), short
         // ones, and limits that end before the surface; rays aimed at
         // vertices, edges and anywhere, on every SIMD path.
-        let data = bumpy_grid(24, 7);
-        let mesh = Mesh::new(data.clone()).unwrap();
+        // Twice: over a bumpy grid, and through a soup of crossing
+        // triangles, where a ray's leaves overlap along it (a hit found in
+        // one leaf must bound the next).
         let mut rng = crate::math::rng::PixelRng::new(29, 0, 0);
+        let mut soup = MeshData::default();
+        for i in 0..1_500u32 {
+            let center = DVec3::new(
+                rng.uniform() * 24.0,
+                rng.uniform() * 3.0,
+                rng.uniform() * 24.0,
+            );
+            for _ in 0..3 {
+                let corner = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 2.0 - 1.0;
+                soup.positions.push(center + corner * 1.5);
+            }
+            soup.triangles.push([3 * i, 3 * i + 1, 3 * i + 2]);
+        }
+        for data in [bumpy_grid(24, 7), soup] {
+            packets_answer_as_alone(&data, &mut rng);
+        }
+    }
+
+    fn packets_answer_as_alone(data: &MeshData, rng: &mut crate::math::rng::PixelRng) {
+        let mesh = Mesh::new(data.clone()).unwrap();
         let (mut hits, mut blocked, mut rays_seen) = (0, 0, 0);
         for i in 0..3_000 {
             let len = if i % 5 == 0 { 1 + i % PACKET } else { PACKET };
