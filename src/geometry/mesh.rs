@@ -329,11 +329,9 @@ impl Mesh {
             }
             return;
         };
-        let watertight = watertight_rays(rays);
         let mut leaf = ClosestTriangles {
             mesh: self,
-            rays: watertight,
-            lanes: WatertightLanes::new(&watertight),
+            rays: LeafRays::new(rays),
             t_min,
             best: [None; PACKET],
             reach: [f64::NEG_INFINITY; PACKET],
@@ -342,7 +340,7 @@ impl Mesh {
         let mut limits = leaf.reach;
         self.bvh
             .closest_packet_on(kernel, &packet, &mut limits, &mut leaf);
-        for (hit, best) in hits.iter_mut().zip(leaf.best) {
+        for (hit, best) in hits.iter_mut().zip(&leaf.best) {
             *hit = best.map(|(triangle, h)| self.surface(triangle, h.barycentric, h.t));
         }
     }
@@ -384,11 +382,9 @@ impl Mesh {
                 });
         };
         let limits = std::array::from_fn(|k| t_max.get(k).copied().unwrap_or(f64::NEG_INFINITY));
-        let watertight = watertight_rays(rays);
         let leaf = BlockingTriangles {
             mesh: self,
-            rays: watertight,
-            lanes: WatertightLanes::new(&watertight),
+            rays: LeafRays::new(rays),
             t_min,
             t_max: limits,
         };
@@ -428,15 +424,35 @@ impl Mesh {
     }
 }
 
-/// `rays` prepared for the watertight test, lanes past the last repeating
-/// ray 0.
-#[inline(always)]
-fn watertight_rays(rays: &[(DVec3, DVec3)]) -> [WatertightRay; PACKET] {
-    let mut out = [WatertightRay::new(rays[0].0, rays[0].1); PACKET];
-    for (prepared, &(o, d)) in out.iter_mut().zip(rays).skip(1) {
-        *prepared = WatertightRay::new(o, d);
+/// A packet's rays prepared for the watertight test when a leaf is first
+/// reached: a packet that meets no leaf (most of a camera's rays that miss)
+/// never pays for it.
+struct LeafRays<'r> {
+    source: &'r [(DVec3, DVec3)],
+    prepared: Option<([WatertightRay; PACKET], Option<WatertightLanes>)>,
+}
+
+impl<'r> LeafRays<'r> {
+    fn new(source: &'r [(DVec3, DVec3)]) -> Self {
+        LeafRays {
+            source,
+            prepared: None,
+        }
     }
-    out
+
+    /// The rays one by one (lanes past the last repeat ray 0), and all of
+    /// them as lanes where they share the watertight test's axes.
+    #[inline(always)]
+    fn get(&mut self) -> &([WatertightRay; PACKET], Option<WatertightLanes>) {
+        let source = self.source;
+        self.prepared.get_or_insert_with(|| {
+            let mut rays = [WatertightRay::new(source[0].0, source[0].1); PACKET];
+            for (prepared, &(o, d)) in rays.iter_mut().zip(source).skip(1) {
+                *prepared = WatertightRay::new(o, d);
+            }
+            (rays, WatertightLanes::new(&rays))
+        })
+    }
 }
 
 /// The closest-hit leaf test: the watertight test, keeping the nearest hit
@@ -471,8 +487,7 @@ const LANES_FROM: u32 = 3;
 /// ray, or all rays at once where they share the watertight test's axes.
 struct ClosestTriangles<'a> {
     mesh: &'a Mesh,
-    rays: [WatertightRay; PACKET],
-    lanes: Option<WatertightLanes>,
+    rays: LeafRays<'a>,
     t_min: f64,
     best: [Option<(usize, TriangleHit)>; PACKET],
     /// Where the lanes look for hits: `t_max`, or just past it once a hit
@@ -484,16 +499,13 @@ impl PacketClosestTest for &mut ClosestTriangles<'_> {
     #[inline(always)]
     fn test(&mut self, rays: u32, position: usize, t_max: &mut [f64; PACKET]) -> u32 {
         let mut closer = 0;
-        let lanes = self
-            .lanes
-            .as_ref()
-            .filter(|_| rays.count_ones() >= LANES_FROM);
-        let Some(lanes) = lanes else {
+        let (one_by_one, lanes) = self.rays.get();
+        let Some(lanes) = lanes.as_ref().filter(|_| rays.count_ones() >= LANES_FROM) else {
             let mut scan = rays;
             while scan != 0 {
                 let k = scan.trailing_zeros() as usize;
                 scan &= scan - 1;
-                let (ray, best) = (&self.rays[k], &mut self.best[k]);
+                let (ray, best) = (&one_by_one[k], &mut self.best[k]);
                 if let Some(t) =
                     closer_triangle(self.mesh, ray, self.t_min, best, position, t_max[k])
                 {
@@ -575,8 +587,7 @@ impl AnyTest for BlockingTriangle<'_> {
 /// or all rays at once where they share the watertight test's axes.
 struct BlockingTriangles<'a> {
     mesh: &'a Mesh,
-    rays: [WatertightRay; PACKET],
-    lanes: Option<WatertightLanes>,
+    rays: LeafRays<'a>,
     t_min: f64,
     t_max: [f64; PACKET],
 }
@@ -585,11 +596,8 @@ impl PacketAnyTest for BlockingTriangles<'_> {
     #[inline(always)]
     fn test(&mut self, rays: u32, position: usize) -> u32 {
         let [a, b, c] = self.mesh.corners(position);
-        if let Some(lanes) = self
-            .lanes
-            .as_ref()
-            .filter(|_| rays.count_ones() >= LANES_FROM)
-        {
+        let (one_by_one, lanes) = self.rays.get();
+        if let Some(lanes) = lanes.as_ref().filter(|_| rays.count_ones() >= LANES_FROM) {
             return triangle_hit_lanes(lanes, rays, a, b, c, self.t_min, &self.t_max).mask;
         }
         let mut blocked = 0;
@@ -597,7 +605,7 @@ impl PacketAnyTest for BlockingTriangles<'_> {
         while scan != 0 {
             let k = scan.trailing_zeros() as usize;
             scan &= scan - 1;
-            let hit = triangle_hit(&self.rays[k], a, b, c, self.t_min, self.t_max[k]);
+            let hit = triangle_hit(&one_by_one[k], a, b, c, self.t_min, self.t_max[k]);
             blocked |= u32::from(hit.is_some()) << k;
         }
         blocked

@@ -151,16 +151,24 @@ impl WatertightLanes {
     pub fn new(rays: &[WatertightRay; LANES]) -> Option<Self> {
         let first = &rays[0];
         let axes = [first.kx, first.ky, first.kz];
-        if rays.iter().any(|r| [r.kx, r.ky, r.kz] != axes) {
-            return None;
-        }
-        Some(WatertightLanes {
-            origin: axes.map(|axis| rays.map(|r| r.origin.to_array()[axis & 3])),
-            sx: rays.map(|r| r.sx),
-            sy: rays.map(|r| r.sy),
-            sz: rays.map(|r| r.sz),
+        let mut lanes = WatertightLanes {
+            origin: [[0.0; LANES]; 3],
+            sx: [0.0; LANES],
+            sy: [0.0; LANES],
+            sz: [0.0; LANES],
             axes,
-        })
+        };
+        // Loops and `&`, not `map` and `any`: this runs once per packet.
+        let mut shared = true;
+        for (k, r) in rays.iter().enumerate() {
+            shared &= (r.kx == first.kx) & (r.ky == first.ky) & (r.kz == first.kz);
+            let o = [r.origin.x, r.origin.y, r.origin.z, 0.0];
+            for (row, &axis) in lanes.origin.iter_mut().zip(&axes) {
+                row[k] = o[axis & 3];
+            }
+            (lanes.sx[k], lanes.sy[k], lanes.sz[k]) = (r.sx, r.sy, r.sz);
+        }
+        shared.then_some(lanes)
     }
 }
 
