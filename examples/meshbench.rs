@@ -231,15 +231,19 @@ fn main() -> anyhow::Result<()> {
         let n = r.origins.len();
         (0..n.div_ceil(PACKET)).map(move |c| c * PACKET..n.min((c + 1) * PACKET))
     };
+    let par_chunks = |r: &Rays| {
+        let n = r.origins.len();
+        (0..n.div_ceil(PACKET))
+            .into_par_iter()
+            .map(move |c| c * PACKET..n.min((c + 1) * PACKET))
+    };
     let closest_packet_1 = |r: &Rays| {
         chunks(r)
             .map(|c| closest_packets(r, c).iter().flatten().count())
             .sum::<usize>()
     };
     let closest_packet_n = |r: &Rays| {
-        chunks(r)
-            .collect::<Vec<_>>()
-            .into_par_iter()
+        par_chunks(r)
             .map(|c| closest_packets(r, c).iter().flatten().count())
             .sum::<usize>()
     };
@@ -249,9 +253,7 @@ fn main() -> anyhow::Result<()> {
             .sum::<usize>()
     };
     let any_packet_n = |r: &Rays| {
-        chunks(r)
-            .collect::<Vec<_>>()
-            .into_par_iter()
+        par_chunks(r)
             .map(|c| any_packets(r, c).count_ones() as usize)
             .sum::<usize>()
     };
