@@ -13,7 +13,7 @@
 //! order). Only the number of boxes and items tested changes.
 
 use super::simd::{Lanes, NodePacket, NodeRay, PACKET};
-use super::wide::{Stack, WIDTH, WideNode};
+use super::wide::{Stack, WIDTH, WideNode, nearest_lane, push_in_order};
 
 /// A child of a wide node on the packet's closest-hit stack.
 #[derive(Clone, Copy, Debug)]
@@ -112,15 +112,7 @@ pub fn closest<L: Lanes>(
         let node = &wide[current];
         let (mask, near, child_rays) = children(lanes, node, packet, current_rays, &limits);
         if mask != 0 {
-            let mut first = mask.trailing_zeros() as usize;
-            let mut scan = mask & (mask - 1);
-            while scan != 0 {
-                let lane = scan.trailing_zeros() as usize;
-                scan &= scan - 1;
-                if near[lane] < near[first] {
-                    first = lane;
-                }
-            }
+            let first = nearest_lane(mask, &near);
             let mut rest = mask & !(1 << first);
             let base = stack.len();
             while rest != 0 {
@@ -129,17 +121,13 @@ pub fn closest<L: Lanes>(
                 if node.count[lane] == 0 {
                     lanes.prefetch(&wide[node.child[lane] as usize]);
                 }
-                stack.push(PacketEntry {
+                let item = PacketEntry {
                     index: node.child[lane],
                     count: node.count[lane],
                     rays: child_rays[lane],
                     entry: near[lane],
-                });
-                let mut k = stack.len() - 1;
-                while k > base && stack[k - 1].entry < stack[k].entry {
-                    stack.swap(k - 1, k);
-                    k -= 1;
-                }
+                };
+                push_in_order(stack, base, item, |e| e.entry);
             }
             let (child, count) = (node.child[first] as usize, node.count[first] as usize);
             if count == 0 {

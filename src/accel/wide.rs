@@ -290,15 +290,7 @@ pub fn closest<L: Lanes>(
             // The nearest child is taken at once; the others go on the
             // stack, each inserted at its place (far at the bottom, near on
             // top), so they come back nearest first.
-            let mut first = mask.trailing_zeros() as usize;
-            let mut scan = mask & (mask - 1);
-            while scan != 0 {
-                let lane = scan.trailing_zeros() as usize;
-                scan &= scan - 1;
-                if near[lane] < near[first] {
-                    first = lane;
-                }
-            }
+            let first = nearest_lane(mask, &near);
             let mut rest = mask & !(1 << first);
             let base = stack.len();
             while rest != 0 {
@@ -309,16 +301,12 @@ pub fn closest<L: Lanes>(
                 if node.count[lane] == 0 {
                     lanes.prefetch(&wide[node.child[lane] as usize]);
                 }
-                stack.push(StackEntry {
+                let item = StackEntry {
                     index: node.child[lane],
                     count: node.count[lane].into(),
                     entry: near[lane],
-                });
-                let mut k = stack.len() - 1;
-                while k > base && stack[k - 1].entry < stack[k].entry {
-                    stack.swap(k - 1, k);
-                    k -= 1;
-                }
+                };
+                push_in_order(stack, base, item, |e| e.entry);
             }
             let (child, count) = (node.child[first] as usize, node.count[first] as usize);
             if count == 0 {
@@ -352,6 +340,39 @@ pub fn closest<L: Lanes>(
                 }
             }
         }
+    }
+}
+
+/// The lane in `mask` with the least `near` (the lowest such lane).
+#[inline(always)]
+pub(super) fn nearest_lane(mask: u32, near: &[f32; WIDTH]) -> usize {
+    let mut first = mask.trailing_zeros() as usize;
+    let mut scan = mask & (mask - 1);
+    while scan != 0 {
+        let lane = scan.trailing_zeros() as usize;
+        scan &= scan - 1;
+        if near[lane] < near[first] {
+            first = lane;
+        }
+    }
+    first
+}
+
+/// Pushes `item` and sinks it below the entries above `base` that are
+/// nearer (by `entry`), so that a node's children come back off the stack
+/// nearest first.
+#[inline(always)]
+pub(super) fn push_in_order<T>(
+    stack: &mut impl Stack<T>,
+    base: usize,
+    item: T,
+    entry: impl Fn(&T) -> f32,
+) {
+    stack.push(item);
+    let mut k = stack.len() - 1;
+    while k > base && entry(&stack[k - 1]) < entry(&stack[k]) {
+        stack.swap(k - 1, k);
+        k -= 1;
     }
 }
 

@@ -105,25 +105,44 @@ unsafe fn entries(node: &WideNode, ray: &NodeRay, limit: f32) -> (u32, [f32; WID
                 _mm256_set1_ps(ray.inv_dir[axis]),
             )
         };
-        let near = _mm256_max_ps(
-            _mm256_max_ps(
-                _mm256_max_ps(t(ray.near_row[0], 0), t(ray.near_row[1], 1)),
+        let (mask, near) = slab8(
+            [
+                t(ray.near_row[0], 0),
+                t(ray.near_row[1], 1),
                 t(ray.near_row[2], 2),
-            ),
+            ],
+            [
+                t(ray.far_row[0], 0),
+                t(ray.far_row[1], 1),
+                t(ray.far_row[2], 2),
+            ],
+            _mm256_set1_ps(limit),
+        );
+        let mut out = [0.0f32; WIDTH];
+        _mm256_storeu_ps(out.as_mut_ptr(), near);
+        (mask & node.valid, out)
+    }
+}
+
+/// `super::slab` in eight lanes: the mask of the lanes whose box is met
+/// before their limit, and the entry distances.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[inline(always)]
+unsafe fn slab8(near: [__m256; 3], far: [__m256; 3], limit: __m256) -> (u32, __m256) {
+    // SAFETY: the caller guarantees AVX2; register operations only.
+    unsafe {
+        let near = _mm256_max_ps(
+            _mm256_max_ps(_mm256_max_ps(near[0], near[1]), near[2]),
             _mm256_setzero_ps(),
         );
         let far = _mm256_mul_ps(
-            _mm256_min_ps(
-                _mm256_min_ps(t(ray.far_row[0], 0), t(ray.far_row[1], 1)),
-                t(ray.far_row[2], 2),
-            ),
+            _mm256_min_ps(_mm256_min_ps(far[0], far[1]), far[2]),
             _mm256_set1_ps(SLACK),
         );
-        let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(near, _mm256_min_ps(far, _mm256_set1_ps(limit)));
-        let mask = _mm256_movemask_ps(hit) as u32 & node.valid;
-        let mut out = [0.0f32; WIDTH];
-        _mm256_storeu_ps(out.as_mut_ptr(), near);
-        (mask, out)
+        let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(near, _mm256_min_ps(far, limit));
+        (_mm256_movemask_ps(hit) as u32, near)
     }
 }
 
@@ -137,31 +156,22 @@ unsafe fn packet_entries(node: &WideNode, p: &NodePacket, limit: f32) -> (u32, [
     // SAFETY (every block below): the caller guarantees AVX2; the loads
     // and the store read and write eight f32 of arrays of that size.
     unsafe {
-        let near = _mm256_max_ps(
-            _mm256_max_ps(
-                _mm256_max_ps(
-                    interval_lo(node, p, p.near_row[0], 0),
-                    interval_lo(node, p, p.near_row[1], 1),
-                ),
+        let (mask, near) = slab8(
+            [
+                interval_lo(node, p, p.near_row[0], 0),
+                interval_lo(node, p, p.near_row[1], 1),
                 interval_lo(node, p, p.near_row[2], 2),
-            ),
-            _mm256_setzero_ps(),
-        );
-        let far = _mm256_mul_ps(
-            _mm256_min_ps(
-                _mm256_min_ps(
-                    interval_hi(node, p, p.far_row[0], 0),
-                    interval_hi(node, p, p.far_row[1], 1),
-                ),
+            ],
+            [
+                interval_hi(node, p, p.far_row[0], 0),
+                interval_hi(node, p, p.far_row[1], 1),
                 interval_hi(node, p, p.far_row[2], 2),
-            ),
-            _mm256_set1_ps(SLACK),
+            ],
+            _mm256_set1_ps(limit),
         );
-        let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(near, _mm256_min_ps(far, _mm256_set1_ps(limit)));
-        let mask = _mm256_movemask_ps(hit) as u32 & node.valid;
         let mut out = [0.0f32; WIDTH];
         _mm256_storeu_ps(out.as_mut_ptr(), near);
-        (mask, out)
+        (mask & node.valid, out)
     }
 }
 
@@ -241,23 +251,16 @@ unsafe fn ray_mask(node: &WideNode, slot: usize, p: &NodePacket, limits: &[f32; 
                 _mm256_loadu_ps(p.inv_dir[axis].as_ptr()),
             )
         };
-        let near = _mm256_max_ps(
-            _mm256_max_ps(
-                _mm256_max_ps(t(p.near_row[0], 0), t(p.near_row[1], 1)),
+        let (mask, _) = slab8(
+            [
+                t(p.near_row[0], 0),
+                t(p.near_row[1], 1),
                 t(p.near_row[2], 2),
-            ),
-            _mm256_setzero_ps(),
+            ],
+            [t(p.far_row[0], 0), t(p.far_row[1], 1), t(p.far_row[2], 2)],
+            _mm256_loadu_ps(limits.as_ptr()),
         );
-        let far = _mm256_mul_ps(
-            _mm256_min_ps(
-                _mm256_min_ps(t(p.far_row[0], 0), t(p.far_row[1], 1)),
-                t(p.far_row[2], 2),
-            ),
-            _mm256_set1_ps(SLACK),
-        );
-        let limit = _mm256_loadu_ps(limits.as_ptr());
-        let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(near, _mm256_min_ps(far, limit));
-        _mm256_movemask_ps(hit) as u32 & p.present
+        mask & p.present
     }
 }
 

@@ -209,7 +209,11 @@ impl NodeRay {
     #[inline]
     pub fn new(origin: DVec3, direction: DVec3) -> Self {
         let inv_dir = direction.to_array().map(inverse);
-        let near_row = [0, 1, 2].map(|a| near_row(inv_dir[a], a));
+        let near_row = [
+            near_row(inv_dir[0], 0),
+            near_row(inv_dir[1], 1),
+            near_row(inv_dir[2], 2),
+        ];
         NodeRay {
             origin: origin.as_vec3().to_array(),
             inv_dir,
@@ -375,18 +379,20 @@ pub(crate) fn packet_entries_scalar(
             let [a, b, c, d] = products(row, axis);
             max(max(a, b), max(c, d))
         };
-        let n = max(
-            max(
-                max(lo(p.near_row[0], 0), lo(p.near_row[1], 1)),
+        let (hit, n) = slab(
+            [
+                lo(p.near_row[0], 0),
+                lo(p.near_row[1], 1),
                 lo(p.near_row[2], 2),
-            ),
-            0.0,
+            ],
+            [
+                hi(p.far_row[0], 0),
+                hi(p.far_row[1], 1),
+                hi(p.far_row[2], 2),
+            ],
+            limit,
         );
-        let f = min(
-            min(hi(p.far_row[0], 0), hi(p.far_row[1], 1)),
-            hi(p.far_row[2], 2),
-        ) * SLACK;
-        mask |= u32::from(n <= min(f, limit)) << lane;
+        mask |= u32::from(hit) << lane;
         *near = n;
     }
     (mask & node.valid, near)
@@ -406,18 +412,16 @@ pub(crate) fn ray_mask_scalar(
         let t = |row: usize, axis: usize| {
             (node.planes[row][slot] - p.origin[axis][k]) * p.inv_dir[axis][k]
         };
-        let n = max(
-            max(
-                max(t(p.near_row[0], 0), t(p.near_row[1], 1)),
+        let (hit, _) = slab(
+            [
+                t(p.near_row[0], 0),
+                t(p.near_row[1], 1),
                 t(p.near_row[2], 2),
-            ),
-            0.0,
+            ],
+            [t(p.far_row[0], 0), t(p.far_row[1], 1), t(p.far_row[2], 2)],
+            limit,
         );
-        let f = min(
-            min(t(p.far_row[0], 0), t(p.far_row[1], 1)),
-            t(p.far_row[2], 2),
-        ) * SLACK;
-        mask |= u32::from(n <= min(f, limit)) << k;
+        mask |= u32::from(hit) << k;
     }
     mask & p.present
 }
@@ -495,6 +499,17 @@ fn min(a: f32, b: f32) -> f32 {
     if a < b { a } else { b }
 }
 
+/// The slab test of one box from its distances to the planes a ray enters
+/// (`near`, by axis) and leaves (`far`) through: whether the ray meets it
+/// before `limit`, and where it enters (0 for an origin inside). Every
+/// node test, scalar or vector, ends in these operations in this order.
+#[inline(always)]
+fn slab(near: [f32; 3], far: [f32; 3], limit: f32) -> (bool, f32) {
+    let n = max(max(max(near[0], near[1]), near[2]), 0.0);
+    let f = min(min(far[0], far[1]), far[2]) * SLACK;
+    (n <= min(f, limit), n)
+}
+
 /// One lane at a time: the reference the others match.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Scalar;
@@ -508,18 +523,20 @@ impl Lanes for Scalar {
             let t = |row: usize, axis: usize| {
                 (node.planes[row][lane] - ray.origin[axis]) * ray.inv_dir[axis]
             };
-            let n = max(
-                max(
-                    max(t(ray.near_row[0], 0), t(ray.near_row[1], 1)),
+            let (hit, n) = slab(
+                [
+                    t(ray.near_row[0], 0),
+                    t(ray.near_row[1], 1),
                     t(ray.near_row[2], 2),
-                ),
-                0.0,
+                ],
+                [
+                    t(ray.far_row[0], 0),
+                    t(ray.far_row[1], 1),
+                    t(ray.far_row[2], 2),
+                ],
+                limit,
             );
-            let f = min(
-                min(t(ray.far_row[0], 0), t(ray.far_row[1], 1)),
-                t(ray.far_row[2], 2),
-            ) * SLACK;
-            mask |= u32::from(n <= min(f, limit)) << lane;
+            mask |= u32::from(hit) << lane;
             *near = n;
         }
         (mask & node.valid, near)
