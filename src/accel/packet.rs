@@ -106,7 +106,6 @@ pub fn closest<L: Lanes>(
         return;
     }
     let mut limits = t_max.map(NodeRay::box_limit);
-    let mut limit = packet_limit(&limits, packet.present());
     let (mut current, mut current_rays) = (0usize, packet.present());
     loop {
         let node = &wide[current];
@@ -142,14 +141,14 @@ pub fn closest<L: Lanes>(
                 t_max,
                 &mut limits,
             );
-            limit = packet_limit(&limits, packet.present());
         }
         // Pop until an interior node to visit; leaves are tested on the way.
         loop {
             let Some(e) = stack.pop() else {
                 return;
             };
-            if e.entry > limit {
+            // Only its own rays' limits matter to an entry.
+            if e.entry > packet_limit(&limits, e.rays.into()) {
                 continue;
             }
             if e.count == 0 {
@@ -164,7 +163,6 @@ pub fn closest<L: Lanes>(
                 t_max,
                 &mut limits,
             );
-            limit = packet_limit(&limits, packet.present());
         }
     }
 }
