@@ -2,9 +2,11 @@
 //! node answers for the whole packet (`Lanes::packet_entries`, interval
 //! arithmetic over the rays), so coherent rays (a tile of camera rays, the
 //! feelers from one point to a light) share the node visits one ray at a
-//! time would each make. Before a leaf's items are tested, one test of its
-//! box answers for each ray (`Lanes::ray_mask`), so a ray tests the items a
-//! traversal of its own would test, and no more than a few others.
+//! time would each make. Each child the packet's test lets through is then
+//! tested against each ray (`Lanes::ray_mask`: one box, eight rays), so a
+//! ray visits only the boxes, and tests only the items, a traversal of its
+//! own would (for rays from one origin, whose packet bound is tight, the
+//! per-ray test waits for the leaves).
 //!
 //! Why each ray gets the hit it gets alone: every box a ray's own test lets
 //! through, the packet's test lets through; items are tested by the same
@@ -23,7 +25,8 @@ pub struct PacketEntry {
     index: u32,
     /// Leaf child: item count; interior child: 0.
     count: u16,
-    /// Leaf child: the rays whose own test let its box through.
+    /// The rays that visit it (whose own test let its box through, or
+    /// for rays from one origin and an interior child, the node's rays).
     rays: u16,
 }
 

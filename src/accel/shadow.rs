@@ -296,7 +296,8 @@ impl ShadowCandidates {
     /// what [`any_hit`](Self::any_hit) answers feeler by feeler. Spheres,
     /// what feelers to sphere lights mostly meet, are tested against every
     /// lane at once by [`sphere_blocks`] (vector code, no early exit to
-    /// wait for); other shapes lane by lane, skipping blocked lanes.
+    /// wait for); meshes by packets of eight open lanes; other shapes lane
+    /// by lane, skipping blocked lanes.
     pub fn any_hit_batch<const N: usize>(
         &self,
         aggregate: &Aggregate,

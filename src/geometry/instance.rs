@@ -66,7 +66,7 @@ impl MeshInstance {
 
     /// [`any_hit`](Self::any_hit) for each of up to eight rays, traced
     /// together (see [`Mesh::any_hit_packet`]): bit k set when ray k is
-    /// blocked within `t_max[k]`.
+    /// blocked within `t_max[k]`. Panics as `Mesh::any_hit_packet` does.
     pub fn any_hit_packet(&self, rays: &[Ray], t_min: f64, t_max: &[f64]) -> u32 {
         let mut local = [(glam::DVec3::ZERO, glam::DVec3::ZERO); crate::accel::PACKET];
         for (l, ray) in local.iter_mut().zip(rays) {

@@ -289,6 +289,10 @@ impl Mesh {
     /// together: coherent rays (neighbouring camera rays, feelers from one
     /// point) share their node visits. Each answer is, to the bit, what
     /// `intersect` gives that ray alone.
+    ///
+    /// # Panics
+    /// If there are more than [`PACKET`] rays, or `t_max` or `hits` is not
+    /// as long as `rays`.
     pub fn intersect_packet(
         &self,
         rays: &[(DVec3, DVec3)],
@@ -348,6 +352,10 @@ impl Mesh {
     /// [`any_hit`](Self::any_hit) for each of up to [`PACKET`] rays, traced
     /// together (see [`intersect_packet`](Self::intersect_packet)): bit k of
     /// the answer is set when ray k is blocked.
+    ///
+    /// # Panics
+    /// If there are more than [`PACKET`] rays, or `t_max` is not as long
+    /// as `rays`.
     pub fn any_hit_packet(&self, rays: &[(DVec3, DVec3)], t_min: f64, t_max: &[f64]) -> u32 {
         self.any_hit_packet_on(simd::kernel(), rays, t_min, t_max)
     }

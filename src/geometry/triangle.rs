@@ -177,7 +177,7 @@ impl WatertightLanes {
 /// only in a lane that hits).
 #[derive(Clone, Copy, Debug)]
 pub struct LaneHits {
-    /// Bit k set when lane k hits with t in (t_min, t_max[k]).
+    /// Bit k set when lane k hits with t in (`t_min`, `t_max[k]`).
     pub mask: u32,
     u: [f64; LANES],
     v: [f64; LANES],
@@ -198,7 +198,7 @@ impl LaneHits {
 }
 
 /// [`triangle_hit`] of triangle (a, b, c) for each lane of `rays` in mask
-/// `active`, lane `k` keeping hits with t in (t_min, t_max[k]): the same
+/// `active`, lane `k` keeping hits with t in (`t_min`, `t_max[k]`): the same
 /// operations, lane by lane, in a form the compiler turns into vector code
 /// (no early exit: every lane runs to the end and the conditions become a
 /// mask), so each lane's answer is the scalar one to the bit.
