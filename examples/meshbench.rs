@@ -6,8 +6,11 @@
 //! (closest hit), (b) incoherent rays (random origins in the bounding box,
 //! random directions; closest hit), (c) shadow rays from the primary hits
 //! to a point light (any hit), each single-threaded and on all threads
-//! (best of 3). Writes the rays for Embree to OUT_DIR (f32: origin,
-//! direction, t_max per ray) with the triangles, and prints one JSON line.
+//! (best of 3); then (a) and (c) again in packets of eight (camera rays in
+//! 4×2 tiles, shadow rays of eight neighbouring hits: the `packets` object),
+//! each packet answer first checked against the ray's own. Writes the rays
+//! for Embree to OUT_DIR (f32: origin, direction, t_max per ray) with the
+//! triangles, and prints one JSON line.
 
 use std::io::Write;
 use std::path::Path;
