@@ -285,9 +285,8 @@ impl Mesh {
 
     /// [`intersect`](Self::intersect) for each of up to [`PACKET`] rays
     /// (`rays[k]` is origin and direction, `t_max[k]` its limit, `hits[k]`
-    /// its answer), traced
-    /// together: coherent rays (neighbouring camera rays, feelers from one
-    /// point) share their node visits. Each answer is, to the bit, what
+    /// its answer), traced together: coherent rays (neighbouring camera
+    /// rays, feelers from one point) share their node visits. Each answer is, to the bit, what
     /// `intersect` gives that ray alone.
     ///
     /// # Panics
@@ -313,35 +312,20 @@ impl Mesh {
         hits: &mut [Option<MeshHit>],
     ) {
         assert!(rays.len() <= PACKET && t_max.len() == rays.len() && hits.len() == rays.len());
-        // Compiled for the kernel's instruction set, so that the per-ray
-        // set-up runs in vectors (the same operations, so the same bits).
-        kernel.vectorize(|| self.intersect_packet_here(kernel, rays, t_min, t_max, hits));
-    }
-
-    #[inline(always)]
-    fn intersect_packet_here(
-        &self,
-        kernel: Kernel,
-        rays: &[(DVec3, DVec3)],
-        t_min: f64,
-        t_max: &[f64],
-        hits: &mut [Option<MeshHit>],
-    ) {
         let Some(packet) = NodePacket::new(rays) else {
             for ((hit, &(o, d)), &t) in hits.iter_mut().zip(rays).zip(t_max) {
                 *hit = self.intersect_on(kernel, o, d, t_min, t);
             }
             return;
         };
+        let mut limits = padded(t_max);
         let mut leaf = ClosestTriangles {
             mesh: self,
             rays: LeafRays::new(rays),
             t_min,
             best: [None; PACKET],
-            reach: [f64::NEG_INFINITY; PACKET],
+            reach: limits,
         };
-        leaf.reach[..t_max.len()].copy_from_slice(t_max);
-        let mut limits = leaf.reach;
         self.bvh
             .closest_packet_on(kernel, &packet, &mut limits, &mut leaf);
         for (hit, best) in hits.iter_mut().zip(&leaf.best) {
@@ -369,17 +353,6 @@ impl Mesh {
         t_max: &[f64],
     ) -> u32 {
         assert!(rays.len() <= PACKET && t_max.len() == rays.len());
-        kernel.vectorize(|| self.any_hit_packet_here(kernel, rays, t_min, t_max))
-    }
-
-    #[inline(always)]
-    fn any_hit_packet_here(
-        &self,
-        kernel: Kernel,
-        rays: &[(DVec3, DVec3)],
-        t_min: f64,
-        t_max: &[f64],
-    ) -> u32 {
         let Some(packet) = NodePacket::new(rays) else {
             return rays
                 .iter()
@@ -389,7 +362,7 @@ impl Mesh {
                     mask | u32::from(self.any_hit_on(kernel, o, d, t_min, t)) << k
                 });
         };
-        let limits = std::array::from_fn(|k| t_max.get(k).copied().unwrap_or(f64::NEG_INFINITY));
+        let limits = padded(t_max);
         let leaf = BlockingTriangles {
             mesh: self,
             rays: LeafRays::new(rays),
@@ -430,6 +403,14 @@ impl Mesh {
             material: self.materials.get(triangle).copied().unwrap_or(0),
         }
     }
+}
+
+/// A packet's limits, lanes past the last ray at −∞ (no ray there).
+#[inline(always)]
+fn padded(t_max: &[f64]) -> [f64; PACKET] {
+    let mut limits = [f64::NEG_INFINITY; PACKET];
+    limits[..t_max.len()].copy_from_slice(t_max);
+    limits
 }
 
 /// A packet's rays prepared for the watertight test when a leaf is first
