@@ -17,13 +17,15 @@
 //! // prism::image_io::write_film(&output.film, "demo.png".as_ref()) writes it.
 //! ```
 
-// Denied everywhere; only accel/simd/avx2.rs (the AVX2 intrinsics) allows it.
+// Denied everywhere; only accel/simd/avx2.rs (the AVX2 intrinsics) and
+// huge_pages.rs (one `madvise`) allow it.
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod accel;
 pub mod camera;
 pub mod geometry;
+pub mod huge_pages;
 pub mod image_io;
 pub mod lights;
 pub mod limits;

@@ -86,7 +86,7 @@ pub struct StackEntry {
 
 /// Collapses the binary tree `nodes` (root at 0) into wide nodes, root at 0.
 pub fn collapse(nodes: &[BvhNode]) -> Vec<WideNode> {
-    let mut wide = Vec::with_capacity(nodes.len() / 6 + 1);
+    let mut wide = crate::huge_pages::with_capacity(nodes.len() / 6 + 1);
     if nodes.is_empty() {
         return wide;
     }

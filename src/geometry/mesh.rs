@@ -13,6 +13,7 @@ use crate::accel::bvh::{AnyTest, Bvh, ClosestTest};
 use crate::accel::packet::{PacketAnyTest, PacketClosestTest};
 use crate::accel::simd::{self, Kernel};
 use crate::accel::{NodePacket, NodeRay, PACKET};
+use crate::huge_pages;
 
 /// What a loader hands over to build a mesh.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -163,7 +164,7 @@ impl Mesh {
         );
         // Store triangles in leaf order, so leaves index them directly.
         let mut ordered: Vec<[u32; 3]> =
-            bvh.order().iter().map(|&i| triangles[i as usize]).collect();
+            huge_pages::collect(bvh.order().iter().map(|&i| triangles[i as usize]));
         drop(triangles);
         let (positions, normals, uvs, colors) =
             renumber_vertices(&mut ordered, positions, normals, uvs, colors);
@@ -630,7 +631,7 @@ fn renumber_vertices(
         if values.is_empty() {
             return values;
         }
-        old_number.iter().map(|&i| values[i as usize]).collect()
+        huge_pages::collect(old_number.iter().map(|&i| values[i as usize]))
     }
     (
         gather(positions, &old_number),
