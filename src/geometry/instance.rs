@@ -5,7 +5,9 @@
 
 use std::sync::Arc;
 
+use super::mesh::MeshHit;
 use super::{Aabb, Mesh, ShapeHit};
+use crate::accel::PACKET;
 use crate::math::{Ray, Transform};
 
 /// One placement of a mesh.
@@ -38,6 +40,39 @@ impl MeshInstance {
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
         let (origin, direction) = self.local(ray);
         let h = self.mesh.intersect(origin, direction, t_min, t_max)?;
+        Some(self.world_hit(ray, h))
+    }
+
+    /// [`intersect`](Self::intersect) for each of up to eight rays, traced
+    /// together (see [`Mesh::intersect_packet`]): `hits[k]` is, to the bit,
+    /// what `intersect` gives ray k alone with limit `t_max[k]`. Panics as
+    /// `Mesh::intersect_packet` does.
+    pub fn intersect_packet(
+        &self,
+        rays: &[Ray],
+        t_min: f64,
+        t_max: &[f64],
+        hits: &mut [Option<ShapeHit>],
+    ) {
+        const NONE: Option<MeshHit> = None;
+        let n = rays.len();
+        assert!(n <= PACKET && hits.len() == n);
+        let mut local = [(glam::DVec3::ZERO, glam::DVec3::ZERO); PACKET];
+        for (l, ray) in local.iter_mut().zip(rays) {
+            *l = self.local(ray);
+        }
+        let mut found = [NONE; PACKET];
+        self.mesh
+            .intersect_packet(&local[..n], t_min, t_max, &mut found[..n]);
+        for ((hit, h), ray) in hits.iter_mut().zip(found).zip(rays) {
+            *hit = h.map(|h| self.world_hit(ray, h));
+        }
+    }
+
+    /// The hit of world-space `ray` from the mesh's hit of its object-space
+    /// form: normals back to world space, the material slot to the scene's.
+    #[inline]
+    fn world_hit(&self, ray: &Ray, h: MeshHit) -> ShapeHit {
         let (normal, shading_normal) = match &self.transform {
             None => (h.normal, h.shading_normal),
             Some(t) => (t.normal(h.normal), t.normal(h.shading_normal)),
@@ -47,7 +82,7 @@ impl MeshInstance {
             .get(h.material as usize)
             .or(self.materials.first())
             .copied();
-        Some(ShapeHit {
+        ShapeHit {
             t: h.t,
             normal,
             front_face: ray.direction.dot(normal) < 0.0,
@@ -55,7 +90,7 @@ impl MeshInstance {
             uv: h.uv,
             color: h.color,
             material,
-        })
+        }
     }
 
     /// Whether any triangle is hit with t in (t_min, t_max).
@@ -68,7 +103,7 @@ impl MeshInstance {
     /// together (see [`Mesh::any_hit_packet`]): bit k set when ray k is
     /// blocked within `t_max[k]`. Panics as `Mesh::any_hit_packet` does.
     pub fn any_hit_packet(&self, rays: &[Ray], t_min: f64, t_max: &[f64]) -> u32 {
-        let mut local = [(glam::DVec3::ZERO, glam::DVec3::ZERO); crate::accel::PACKET];
+        let mut local = [(glam::DVec3::ZERO, glam::DVec3::ZERO); PACKET];
         for (l, ray) in local.iter_mut().zip(rays) {
             *l = self.local(ray);
         }

@@ -10,13 +10,13 @@ use std::time::Instant;
 use glam::DVec3;
 
 use super::{
-    Film, Region, RenderError, RenderObserver, RenderOutput, RenderSettings, render_pixel_recorded,
-    render_with,
+    Film, RayStats, Region, RenderError, RenderObserver, RenderOutput, RenderSettings,
+    render_pixel_recorded, render_with,
 };
 use crate::geometry::Hit;
 use crate::math::Ray;
 use crate::scene::Scene;
-use crate::shading::whitted::{RayKind, Recorder};
+use crate::shading::whitted::{RayKind, Recorder, Whitted};
 
 /// A debug view.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -119,7 +119,7 @@ pub fn render_aov(
     aov: Aov,
     observer: &dyn RenderObserver,
 ) -> Result<RenderOutput, RenderError> {
-    render_with(scene, settings, region, observer, |tracer, x, y, stats| {
+    let pixel = |tracer: &Whitted, x: u32, y: u32, stats: &mut RayStats| {
         let start = Instant::now();
         let mut r = PixelRecord::default();
         render_pixel_recorded(scene, tracer, settings, x, y, stats, None, &mut r);
@@ -139,7 +139,16 @@ pub fn render_aov(
             Aov::Feelers => DVec3::splat(r.feelers as f64),
             Aov::Time => DVec3::splat(start.elapsed().as_nanos() as f64),
         }
-    })
+    };
+    render_with(
+        scene,
+        settings,
+        region,
+        observer,
+        |tracer, y, xs, stats, out| {
+            out.extend(xs.map(|x| pixel(tracer, x, y, stats)));
+        },
+    )
 }
 
 /// A readable picture of raw view values, for the 8-bit formats: normals

@@ -14,6 +14,7 @@ pub use checkpoint::Checkpoint;
 pub use film::Film;
 pub use region::Region;
 
+use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
@@ -21,6 +22,8 @@ use glam::DVec3;
 use rayon::prelude::*;
 use thiserror::Error;
 
+use crate::accel::PACKET;
+use crate::math::Ray;
 use crate::math::rng::PixelRng;
 use crate::math::sampling::Strata;
 use crate::scene::Scene;
@@ -106,19 +109,26 @@ pub fn render_region(
     region: Region,
     observer: &dyn RenderObserver,
 ) -> Result<RenderOutput, RenderError> {
-    render_with(scene, settings, region, observer, |tracer, x, y, stats| {
-        render_pixel(scene, tracer, settings, x, y, stats)
-    })
+    render_with(
+        scene,
+        settings,
+        region,
+        observer,
+        |tracer, y, xs, stats, out| {
+            render_row(scene, tracer, settings, y, xs, stats, out);
+        },
+    )
 }
 
-/// The render loop over `region`'s tiles, `pixel` computing each pixel's
-/// value (the radiance, or an AOV).
+/// The render loop over `region`'s tiles, `row(tracer, y, xs, stats, out)`
+/// pushing onto `out` the values (the radiance, or an AOV) of the pixels
+/// `xs` of row `y`, in order.
 fn render_with(
     scene: &Scene,
     settings: &RenderSettings,
     region: Region,
     observer: &dyn RenderObserver,
-    pixel: impl Fn(&Whitted, u32, u32, &mut RayStats) -> DVec3 + Sync,
+    row: impl Fn(&Whitted, u32, Range<u32>, &mut RayStats, &mut Vec<DVec3>) + Sync,
 ) -> Result<RenderOutput, RenderError> {
     settings.check().map_err(RenderError::Settings)?;
     if !Region::full(settings.width, settings.height).contains(&region) || region.area() == 0 {
@@ -162,9 +172,7 @@ fn render_with(
                     if observer.cancelled() {
                         return None;
                     }
-                    for x in tile.x0..tile.x1 {
-                        pixels.push(pixel(&tracer, x, y, &mut stats));
-                    }
+                    row(&tracer, y, tile.x0..tile.x1, &mut stats, &mut pixels);
                 }
                 let n = pixels.len() as u64;
                 observer.tile_done(tile, &pixels, done.fetch_add(n, Ordering::Relaxed) + n);
@@ -197,6 +205,58 @@ pub fn render_pixel(
     stats: &mut RayStats,
 ) -> DVec3 {
     render_pixel_recorded(scene, tracer, settings, x, y, stats, None, &mut ()).0
+}
+
+/// [`render_pixel`] for each pixel of `xs` in row `y`, pushed onto `out`
+/// in order, to the bit: the camera rays of each sample of up to
+/// [`PACKET`] neighbouring pixels are traced to their first hit together
+/// (see [`Aggregate::closest_hit_packet`](crate::accel::Aggregate::closest_hit_packet)),
+/// and each is then shaded from there as `render_pixel` shades it, drawing
+/// from its pixel's own stream in the same order.
+pub fn render_row(
+    scene: &Scene,
+    tracer: &Whitted,
+    settings: &RenderSettings,
+    y: u32,
+    xs: Range<u32>,
+    stats: &mut RayStats,
+    out: &mut Vec<DVec3>,
+) {
+    let seed = frame_seed(settings.seed, settings.frame);
+    let strata = Strata::new(settings.spp as usize);
+    let spp = strata.len();
+    let mut x0 = xs.start;
+    while x0 < xs.end {
+        let n = (xs.end - x0).min(PACKET as u32) as usize;
+        let mut rngs: [PixelRng; PACKET] =
+            std::array::from_fn(|k| PixelRng::new(seed, x0 + k.min(n - 1) as u32, y));
+        let mut sums = [DVec3::ZERO; PACKET];
+        let mut rays = [Ray::new(DVec3::ZERO, DVec3::Z); PACKET];
+        let mut hits = [None; PACKET];
+        for s in 0..spp {
+            for (k, (ray, rng)) in rays.iter_mut().zip(&mut rngs).enumerate().take(n) {
+                let offset = if spp == 1 {
+                    glam::DVec2::splat(0.5)
+                } else {
+                    strata.point(s, rng)
+                };
+                *ray = scene.camera.ray(
+                    f64::from(x0 + k as u32) + offset.x,
+                    f64::from(y) + offset.y,
+                    settings.width,
+                    settings.height,
+                );
+            }
+            scene
+                .aggregate
+                .closest_hit_packet(&rays[..n], f64::INFINITY, &mut hits[..n]);
+            for k in 0..n {
+                sums[k] += tracer.camera_radiance(&rays[k], hits[k], &mut rngs[k], stats);
+            }
+        }
+        out.extend(sums[..n].iter().map(|&sum| sum / spp as f64));
+        x0 += n as u32;
+    }
 }
 
 /// [`render_pixel`], with sample `recorded` (every sample: `None`) traced

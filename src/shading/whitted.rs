@@ -243,6 +243,26 @@ impl<'a> Whitted<'a> {
         self.trace(ray, path, rng, stats, recorder)
     }
 
+    /// The colour seen along camera ray `ray` whose first hit, `hit`, is
+    /// already known (what the aggregate's `closest_hit` answers for it
+    /// without limit): to the bit what [`radiance`](Self::radiance) gives.
+    pub fn camera_radiance(
+        &self,
+        ray: &Ray,
+        hit: Option<Hit>,
+        rng: &mut PixelRng,
+        stats: &mut RayStats,
+    ) -> DVec3 {
+        stats.camera += 1;
+        let path = PathState {
+            kind: RayKind::Camera,
+            depth: 1,
+            weight: DVec3::ONE,
+            media: Media::default(),
+        };
+        self.shade(ray, path, hit, rng, stats, &mut ())
+    }
+
     fn trace<R: Recorder>(
         &self,
         ray: &Ray,
@@ -270,7 +290,22 @@ impl<'a> Whitted<'a> {
             RayKind::Refraction => stats.refraction += 1,
         }
         rec.ray(path.kind, path.depth, path.weight, ray);
-        let Some(hit) = self.scene.aggregate.closest_hit(ray, f64::INFINITY) else {
+        let hit = self.scene.aggregate.closest_hit(ray, f64::INFINITY);
+        self.shade(ray, path, hit, rng, stats, rec)
+    }
+
+    /// The colour along `ray` from its first hit on: the local model,
+    /// and the reflected and refracted rays traced on.
+    fn shade<R: Recorder>(
+        &self,
+        ray: &Ray,
+        path: PathState,
+        hit: Option<Hit>,
+        rng: &mut PixelRng,
+        stats: &mut RayStats,
+        rec: &mut R,
+    ) -> DVec3 {
+        let Some(hit) = hit else {
             rec.stop(Stop::Miss);
             return self.scene.background;
         };
