@@ -12,7 +12,7 @@ use super::optics::{fresnel_dielectric, reflect, refract, schlick};
 use super::{Fresnel, Material};
 use crate::accel::{Blocker, FeelerBatch, ShadowCandidates, simd};
 use crate::geometry::Hit;
-use crate::lights::{Light, LightSample, SAMPLE_BATCH};
+use crate::lights::{Light, LightSample, LightSampler, SAMPLE_BATCH};
 use crate::math::Ray;
 use crate::math::ray::SpawnOrigins;
 use crate::math::rng::PixelRng;
@@ -437,6 +437,9 @@ impl<'a> Whitted<'a> {
     ) -> DVec3 {
         let sampler = light.sampler(point.hit.point);
         let count = sampler.count();
+        if count == 1 {
+            return self.direct_one(index, light, &sampler, point, rng, stats, rec);
+        }
         // Many feelers to one sphere light: cull the scene against their
         // hull once, then test each against what is left.
         let mut candidates = match sampler.light_sphere() {
@@ -525,6 +528,43 @@ impl<'a> Whitted<'a> {
         }
         let contribution = light.radiance * sum / count as f64;
         rec.light(index, count, contribution);
+        contribution
+    }
+
+    /// [`direct`](Self::direct) for a light of one sample (a point, spot or
+    /// directional light), to the bit, without the batch's arrays (their
+    /// set-up was a tenth of a render under a point light).
+    #[allow(clippy::too_many_arguments)]
+    fn direct_one<R: Recorder>(
+        &self,
+        index: usize,
+        light: &Light,
+        sampler: &LightSampler,
+        point: &ShadingPoint,
+        rng: &mut PixelRng,
+        stats: &mut RayStats,
+        rec: &mut R,
+    ) -> DVec3 {
+        let mut batch = ArrayVec::<LightSample, SAMPLE_BATCH>::new();
+        sampler.sample_batch(0, rng, &mut batch);
+        let sample = &batch[0];
+        let mut sum = DVec3::ZERO;
+        // As `direct`: no feeler where the light is behind the surface
+        // (N·L ≤ 0; NaN is traced).
+        let behind = point.n.dot(sample.direction) <= 0.0;
+        if !behind {
+            let origins = SpawnOrigins::new(point.hit.point, point.hit.normal);
+            let visibility = self.visibility(&origins, sample, None, stats);
+            rec.feeler(index, sample.direction, sample.falloff, visibility);
+            if visibility != DVec3::ZERO {
+                let shade = point
+                    .material
+                    .phong(point.od, point.n, sample.direction, point.view);
+                sum += visibility * sample.falloff * shade;
+            }
+        }
+        let contribution = light.radiance * sum / 1.0;
+        rec.light(index, 1, contribution);
         contribution
     }
 
