@@ -319,36 +319,13 @@ mod tests {
 
     #[test]
     fn packets_answer_each_ray_as_it_is_answered_alone() {
-        use crate::geometry::{Mesh, MeshData, MeshInstance};
+        use crate::geometry::{Mesh, MeshInstance};
         use crate::math::Transform;
         use crate::math::rng::PixelRng;
         use std::sync::Arc;
         let mut rng = PixelRng::new(41, 0, 0);
         // A bumpy 12×12 grid over [0, 12]² at y ≈ 0.
-        let n = 12u32;
-        let positions = (0..(n + 1) * (n + 1))
-            .map(|i| {
-                DVec3::new(
-                    (i % (n + 1)) as f64,
-                    0.3 * rng.uniform(),
-                    (i / (n + 1)) as f64,
-                )
-            })
-            .collect();
-        let triangles = (0..n * n)
-            .flat_map(|q| {
-                let a = q / n * (n + 1) + q % n;
-                [[a, a + n + 1, a + 1], [a + 1, a + n + 1, a + n + 2]]
-            })
-            .collect();
-        let mesh = Arc::new(
-            Mesh::new(MeshData {
-                positions,
-                triangles,
-                ..Default::default()
-            })
-            .unwrap(),
-        );
+        let mesh = Arc::new(Mesh::new(crate::geometry::mesh::tests::bumpy_grid(12, 41)).unwrap());
         let placed = |transform: Option<Transform>, material: u32| Primitive {
             shape: Shape::Mesh(Box::new(MeshInstance {
                 mesh: mesh.clone(),

@@ -642,7 +642,7 @@ fn renumber_vertices(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// A unit cube from (0,0,0) to (1,1,1), 12 triangles, outward winding.
@@ -747,7 +747,7 @@ mod tests {
     }
 
     /// A bumpy n×n grid over [0, n]², heights from a seeded generator.
-    fn bumpy_grid(n: u32, seed: u64) -> MeshData {
+    pub(crate) fn bumpy_grid(n: u32, seed: u64) -> MeshData {
         let mut rng = crate::math::rng::PixelRng::new(seed, 0, 0);
         let positions = (0..(n + 1) * (n + 1))
             .map(|i| {

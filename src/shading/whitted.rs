@@ -547,12 +547,12 @@ impl<'a> Whitted<'a> {
     ) -> DVec3 {
         let mut batch = ArrayVec::<LightSample, SAMPLE_BATCH>::new();
         sampler.sample_batch(0, rng, &mut batch);
-        let sample = &batch[0];
         let mut sum = DVec3::ZERO;
         // As `direct`: no feeler where the light is behind the surface
         // (N·L ≤ 0; NaN is traced).
-        let behind = point.n.dot(sample.direction) <= 0.0;
-        if !behind {
+        let sample = batch.first();
+        let behind = sample.is_none_or(|s| point.n.dot(s.direction) <= 0.0);
+        if let Some(sample) = sample.filter(|_| !behind) {
             let origins = SpawnOrigins::new(point.hit.point, point.hit.normal);
             let visibility = self.visibility(&origins, sample, None, stats);
             rec.feeler(index, sample.direction, sample.falloff, visibility);
