@@ -133,7 +133,7 @@ impl Aggregate {
         }
         self.bvh
             .closest_packet_on(simd::kernel(), &packet, &mut closest, &mut test);
-        for ((hit, found), ray) in hits.iter_mut().zip(test.found).zip(rays) {
+        for ((hit, found), ray) in hits.iter_mut().zip(&test.found).zip(rays) {
             *hit = found.map(|(primitive, h)| self.hit(ray, primitive, h));
         }
     }

@@ -563,7 +563,8 @@ impl<'a> Whitted<'a> {
                 sum += visibility * sample.falloff * shade;
             }
         }
-        let contribution = light.radiance * sum / 1.0;
+        // `direct` divides by the count, here 1: exact, so left out.
+        let contribution = light.radiance * sum;
         rec.light(index, 1, contribution);
         contribution
     }

@@ -379,19 +379,7 @@ pub(crate) fn packet_entries_scalar(
             let [a, b, c, d] = products(row, axis);
             max(max(a, b), max(c, d))
         };
-        let (hit, n) = slab(
-            [
-                lo(p.near_row[0], 0),
-                lo(p.near_row[1], 1),
-                lo(p.near_row[2], 2),
-            ],
-            [
-                hi(p.far_row[0], 0),
-                hi(p.far_row[1], 1),
-                hi(p.far_row[2], 2),
-            ],
-            limit,
-        );
+        let (hit, n) = slab_rows(p.near_row, p.far_row, lo, hi, limit);
         mask |= u32::from(hit) << lane;
         *near = n;
     }
@@ -412,15 +400,7 @@ pub(crate) fn ray_mask_scalar(
         let t = |row: usize, axis: usize| {
             (node.planes[row][slot] - p.origin[axis][k]) * p.inv_dir[axis][k]
         };
-        let (hit, _) = slab(
-            [
-                t(p.near_row[0], 0),
-                t(p.near_row[1], 1),
-                t(p.near_row[2], 2),
-            ],
-            [t(p.far_row[0], 0), t(p.far_row[1], 1), t(p.far_row[2], 2)],
-            limit,
-        );
+        let (hit, _) = slab_rows(p.near_row, p.far_row, t, t, limit);
         mask |= u32::from(hit) << k;
     }
     mask & p.present
@@ -510,6 +490,29 @@ fn slab(near: [f32; 3], far: [f32; 3], limit: f32) -> (bool, f32) {
     (n <= min(f, limit), n)
 }
 
+/// [`slab`] of a box whose distance to the plane of row `row` on axis
+/// `axis` is `near(row, axis)` for the rows a ray enters through
+/// (`near_row`, by axis) and `far(row, axis)` for those it leaves through
+/// (`far_row`): the scalar node tests, per ray and per packet.
+#[inline(always)]
+fn slab_rows(
+    near_row: [usize; 3],
+    far_row: [usize; 3],
+    near: impl Fn(usize, usize) -> f32,
+    far: impl Fn(usize, usize) -> f32,
+    limit: f32,
+) -> (bool, f32) {
+    slab(
+        [
+            near(near_row[0], 0),
+            near(near_row[1], 1),
+            near(near_row[2], 2),
+        ],
+        [far(far_row[0], 0), far(far_row[1], 1), far(far_row[2], 2)],
+        limit,
+    )
+}
+
 /// One lane at a time: the reference the others match.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Scalar;
@@ -523,19 +526,7 @@ impl Lanes for Scalar {
             let t = |row: usize, axis: usize| {
                 (node.planes[row][lane] - ray.origin[axis]) * ray.inv_dir[axis]
             };
-            let (hit, n) = slab(
-                [
-                    t(ray.near_row[0], 0),
-                    t(ray.near_row[1], 1),
-                    t(ray.near_row[2], 2),
-                ],
-                [
-                    t(ray.far_row[0], 0),
-                    t(ray.far_row[1], 1),
-                    t(ray.far_row[2], 2),
-                ],
-                limit,
-            );
+            let (hit, n) = slab_rows(ray.near_row, ray.far_row, t, t, limit);
             mask |= u32::from(hit) << lane;
             *near = n;
         }
