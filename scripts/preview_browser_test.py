@@ -89,10 +89,15 @@ def canvas_rgb():
     return base64.b64decode(b64)
 
 
+# The picture is on the canvas: no /picture fetch under way (tiles wait for
+# it) and no redraw pending (requestAnimationFrame).
+DRAWN = ("window.prism.radiance !== null && window.prism.loading === null && "
+         "!window.prism.dirty")
+
+
 def wait_done(generation_above):
-    wait(f"window.prism.generation > {generation_above} && window.prism.phase === 'done'",
-         "the render to finish")
-    time.sleep(0.3)  # the last tiles' redraw (requestAnimationFrame)
+    wait(f"window.prism.generation > {generation_above} && window.prism.phase === 'done' && "
+         + DRAWN, "the render to finish and be drawn")
     return driver.execute_script("return window.prism.generation;")
 
 
@@ -127,7 +132,7 @@ def set_exposure(ev):
     driver.execute_script(f"""
         const e = document.getElementById('exposure');
         e.value = '{ev}'; e.dispatchEvent(new Event('input'));""")
-    time.sleep(0.3)  # the redraw (requestAnimationFrame)
+    wait(DRAWN, "the redraw at the new exposure")
 
 
 try:
@@ -289,8 +294,8 @@ try:
     driver.save_screenshot(os.path.join(SCREENS, "6-refused.png"))
     for s in held:
         s.close()
-    wait("window.prism.phase === 'done' && window.prism.notice === ''",
-         "the page to connect once there is room")
+    wait("window.prism.phase === 'done' && window.prism.notice === '' && " + DRAWN,
+         "the page to connect once there is room and draw the picture")
     compare(canvas_rgb(), reference("connected"), "the page that waited for room")
 
     # Network mode: the token in the printed URL, then in a cookie.
@@ -306,9 +311,8 @@ try:
     if driver.current_url != bare:
         fail(f"the token stays in the address bar: {driver.current_url}")
     driver.refresh()
-    wait("window.prism && window.prism.phase === 'done' && window.prism.loading === null",
+    wait("window.prism && window.prism.phase === 'done' && " + DRAWN,
          "the page reloaded with the cookie")
-    time.sleep(0.3)  # the redraw (requestAnimationFrame)
     compare(canvas_rgb(), reference("network"), "network mode, reloaded from the cookie")
     print("ok: network mode: the token is asked for, kept in a cookie and out of the address bar")
 finally:
