@@ -621,6 +621,15 @@ fn a_killed_frame_sequence_resumes_without_rendering_finished_frames() {
         .unwrap()
         .modified()
         .unwrap();
+    // What a kill at a less lucky moment leaves: the next frame's folder
+    // holding only its manifest's temporary file (once, a real kill landed
+    // there and the rerun refused the folder), and a frame record's
+    // temporary file.
+    if !d.join("ck/frame_0001/checkpoint.txt").exists() {
+        std::fs::create_dir_all(d.join("ck/frame_0001")).unwrap();
+        std::fs::write(d.join("ck/frame_0001/.tile-kIlL3d.part"), "scene=").unwrap();
+    }
+    std::fs::write(d.join("ck/.frame-kIlL3d.part"), "scene=").unwrap();
     let o = prism(
         d,
         &[&args[..], &["--checkpoint", "ck", "-o", "out_####.png"]].concat(),

@@ -62,6 +62,9 @@ impl Checkpoint {
                 ));
             }
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                // A run killed while writing the manifest leaves only its
+                // temporary file: the folder is still new.
+                remove_leftover_temporaries(dir);
                 if std::fs::read_dir(dir).map_or(true, |mut d| d.next().is_some()) {
                     return Err(format!(
                         "{}: is not empty and holds no checkpoint; give an empty or new folder",
@@ -139,12 +142,32 @@ fn tile_name(tile: Region) -> String {
     format!("{}-{}.tile", tile.x0, tile.y0)
 }
 
+/// How `write_atomically` names its temporary files.
+const TEMP_PREFIX: &str = ".tile-";
+const TEMP_SUFFIX: &str = ".part";
+
+/// Removes the temporary files a killed run left in `dir` (plain files
+/// named as `write_atomically` names them; nothing else is touched).
+fn remove_leftover_temporaries(dir: &Path) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let name = name.to_string_lossy();
+        let ours = name.starts_with(TEMP_PREFIX) && name.ends_with(TEMP_SUFFIX);
+        if ours && entry.file_type().is_ok_and(|t| t.is_file()) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
 /// Writes `bytes` to a temporary file beside `path` and renames it there.
 fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let dir = path.parent().unwrap_or(Path::new("."));
     let mut temp = tempfile::Builder::new()
-        .prefix(".tile-")
-        .suffix(".part")
+        .prefix(TEMP_PREFIX)
+        .suffix(TEMP_SUFFIX)
         .tempfile_in(dir)?;
     temp.write_all(bytes)?;
     temp.persist(path).map_err(|e| e.error)?;
@@ -233,6 +256,32 @@ mod tests {
         let mut flipped = bytes.clone();
         flipped[40] ^= 1;
         assert_eq!(decode("k", &flipped), None);
+    }
+
+    /// A run killed while writing the manifest leaves only the manifest's
+    /// temporary file; the next run takes the folder as new, and still
+    /// refuses a folder holding anything else.
+    #[test]
+    fn a_folder_holding_only_a_killed_runs_temporary_is_new() {
+        let dir = tempfile::tempdir().unwrap();
+        let at = dir.path().join("cp");
+        std::fs::create_dir(&at).unwrap();
+        let leftover = at.join(".tile-Ab3xYz.part");
+        std::fs::write(&leftover, b"scene=a\nreg").unwrap();
+        let c = Checkpoint::open(&at, "scene=a\n").unwrap();
+        assert_eq!(c.resumed(), 0);
+        assert!(!leftover.exists());
+        assert_eq!(
+            std::fs::read_to_string(at.join(MANIFEST)).unwrap(),
+            "scene=a\n"
+        );
+        let other = dir.path().join("other");
+        std::fs::create_dir(&other).unwrap();
+        std::fs::write(other.join(".tile-Ab3xYz.part"), b"").unwrap();
+        std::fs::write(other.join("notes.txt"), b"mine").unwrap();
+        let refused = Checkpoint::open(&other, "scene=a\n").err().unwrap();
+        assert!(refused.contains("holds no checkpoint"), "{refused}");
+        assert!(other.join("notes.txt").exists());
     }
 
     #[test]

@@ -620,22 +620,31 @@ impl FrameRecord {
         })?;
         let dir = self.path.parent().unwrap_or(Path::new("."));
         std::fs::create_dir_all(dir).map_err(fail)?;
-        let mut temp = tempfile::NamedTempFile::new_in(dir).map_err(fail)?;
+        let mut temp = tempfile::Builder::new()
+            .prefix(RECORD_TEMP.0)
+            .suffix(RECORD_TEMP.1)
+            .tempfile_in(dir)
+            .map_err(fail)?;
         std::io::Write::write_all(&mut temp, text.as_bytes()).map_err(fail)?;
         temp.persist(&self.path).map_err(|e| fail(e.error))?;
         Ok(())
     }
 }
 
-/// Removes the frame records and the checkpoint folder once every frame
-/// is written; anything else a user put there stays, and so does the
-/// folder then.
+/// The prefix and suffix of a frame record's temporary file.
+const RECORD_TEMP: (&str, &str) = (".frame-", ".part");
+
+/// Removes the frame records (and the temporary files of records a killed
+/// run was writing) and the checkpoint folder once every frame is written;
+/// anything else a user put there stays, and so does the folder then.
 fn remove_frame_records(dir: &Path) {
     if let Ok(entries) = std::fs::read_dir(dir) {
         for entry in entries.flatten() {
             let name = entry.file_name();
             let name = name.to_string_lossy();
-            if name.starts_with("frame_") && name.ends_with(".done") {
+            let record = name.starts_with("frame_") && name.ends_with(".done");
+            let temporary = name.starts_with(RECORD_TEMP.0) && name.ends_with(RECORD_TEMP.1);
+            if (record || temporary) && entry.file_type().is_ok_and(|t| t.is_file()) {
                 let _ = std::fs::remove_file(entry.path());
             }
         }
