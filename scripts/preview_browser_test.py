@@ -68,6 +68,16 @@ for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--window-size=15
 driver = webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
 
 
+def save(text):
+    """Saves the scene as an editor that writes a new file and renames it
+    does: the server never reads it half written (a truncate, then a write,
+    can be read in between under load)."""
+    temp = SCENE + ".saving"
+    with open(temp, "w") as f:
+        f.write(text)
+    os.replace(temp, SCENE)
+
+
 def wait(condition, what, timeout=60):
     end = time.time() + timeout
     while time.time() < end:
@@ -235,7 +245,7 @@ try:
     before = canvas_rgb()
     coarse_before = driver.execute_script("return window.prism.coarseAt;")
     saved = time.time()
-    open(SCENE, "w").write(moved)
+    save(moved)
     wait(f"window.prism.coarseAt !== {json.dumps(coarse_before)}", "the coarse picture", 10)
     latency = time.time() - saved
     generation = wait_done(generation)
@@ -254,7 +264,7 @@ try:
 
     # A broken save: the located error, the picture kept.
     broken = moved.replace("radius = 0.8", 'radius = "big"')
-    open(SCENE, "w").write(broken)
+    save(broken)
     wait("window.prism.phase === 'error'", "the error")
     line = next(i + 1 for i, l in enumerate(broken.splitlines()) if 'radius = "big"' in l)
     errors = driver.find_element(By.ID, "errors")
@@ -266,7 +276,7 @@ try:
     driver.save_screenshot(os.path.join(SCREENS, "4-error.png"))
 
     # Fixed: the picture returns and the error goes.
-    open(SCENE, "w").write(moved)
+    save(moved)
     wait_done(driver.execute_script("return window.prism.generation;") - 1)
     wait("document.getElementById('errors').hidden", "the error to go")
     compare(canvas_rgb(), reference("fixed"), "after the fix")

@@ -25,12 +25,17 @@ fail() { echo "FAIL: $*" >&2; exit 1; }
 sed -e 's/^width = .*/width = 200/' -e 's/^height = .*/height = 150/' scenes/rolling.toml > "$WORK/scene.toml"
 
 # Waits until none of the jobs recorded in $1/jobs.txt (of kind $2, or all)
-# is queued or running.
+# is queued or running. All jobs are listed (by their array's job ID) and
+# searched, so that a job already purged is not an error, and a failed
+# squeue (slurmctld busy) is asked again rather than read as "none left".
 wait_jobs() {
-    local ids
-    ids=$(awk -v k="${2:-}" 'k == "" || $1 == k {print $2}' "$1/jobs.txt" | paste -sd, -)
+    local ids now left
+    ids=$(awk -v k="${2:-}" 'k == "" || $1 == k {print $2}' "$1/jobs.txt")
     for _ in $(seq 1 300); do
-        if [ -z "$(squeue --noheader --jobs "$ids" 2>/dev/null)" ]; then return 0; fi
+        if now=$(squeue --noheader --format '%F' 2>/dev/null); then
+            left=$(for id in $ids; do if echo "$now" | grep -qx "$id"; then echo "$id"; fi; done)
+            if [ -z "$left" ]; then return 0; fi
+        fi
         sleep 1
     done
     squeue >&2
@@ -60,7 +65,9 @@ out=$("$PRISM" farm slurm "$WORK/scene.toml" -o "$WORK/b" --tiles 4 --frames 0-1
 echo "$out"
 job=$(echo "$out" | sed -n 's/^submitted render job \([0-9]*\).*/\1/p')
 scancel "${job}_6"
-wait_jobs "$WORK/b" render
+# All of them: the merge job starts once the renders end, and a rerun
+# refuses to submit while a merge of the folder runs.
+wait_jobs "$WORK/b"
 [ ! -e "$WORK/b/parts/frame_0001_tile_0002.exr" ] || fail "the cancelled task's part exists"
 [ ! -e "$WORK/b/frame_0001.exr" ] || fail "frame 1 was merged without its part"
 "$PRISM" farm status "$WORK/b"

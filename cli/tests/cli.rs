@@ -379,8 +379,9 @@ fn interrupted_render_writes_nothing() {
     let scene =
         Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/..")).join("scenes/soft-shadows.toml");
     std::fs::write(dir.path().join("out.png"), b"previous image").unwrap();
-    // A render of a minute or more, interrupted after half a second.
-    let child = Command::new(env!("CARGO_BIN_EXE_prism"))
+    // A render of a minute or more, interrupted once it is under way (its
+    // first line is printed after the interrupt handler is in place).
+    let mut child = Command::new(env!("CARGO_BIN_EXE_prism"))
         .args([
             "render",
             scene.to_str().unwrap(),
@@ -395,15 +396,25 @@ fn interrupted_render_writes_nothing() {
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
-    std::thread::sleep(std::time::Duration::from_millis(500));
+    let mut err = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut printed = String::new();
+    while !printed.contains("prism: rendering") {
+        let before = printed.len();
+        std::io::BufRead::read_line(&mut err, &mut printed).unwrap();
+        assert!(printed.len() > before, "prism ended early: {printed}");
+    }
     let kill = Command::new("kill")
         .args(["-INT", &child.id().to_string()])
         .status()
         .unwrap();
     assert!(kill.success());
-    let o = child.wait_with_output().unwrap();
-    assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
-    assert!(stderr(&o).contains("interrupted; nothing was written"));
+    std::io::Read::read_to_string(&mut err, &mut printed).unwrap();
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "{printed}");
+    assert!(
+        printed.contains("interrupted; nothing was written"),
+        "{printed}"
+    );
     assert_eq!(
         std::fs::read(dir.path().join("out.png")).unwrap(),
         b"previous image"

@@ -127,11 +127,15 @@ impl Checkpoint {
     pub fn remove(self) -> std::io::Result<()> {
         for entry in std::fs::read_dir(&self.dir)?.flatten() {
             let path = entry.path();
-            if path.extension().is_some_and(|e| e == "tile" || e == "part")
-                || path.file_name().is_some_and(|n| n == MANIFEST)
-            {
+            if path.extension().is_some_and(|e| e == "tile" || e == "part") {
                 std::fs::remove_file(path)?;
             }
+        }
+        // The manifest last: a run killed part way leaves a checkpoint the
+        // next run still takes, not tiles without one (which it refuses).
+        match std::fs::remove_file(self.dir.join(MANIFEST)) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(e),
+            _ => {}
         }
         std::fs::remove_dir(&self.dir)
     }

@@ -467,13 +467,12 @@ async fn events(State(app): State<App>) -> Response {
         )
             .into_response();
     }
-    let receiver = app.shared.events.subscribe();
-    let status = app
-        .shared
-        .status
-        .lock()
-        .map(|s| s.clone())
-        .unwrap_or_default();
+    // Under the status lock, which the worker holds while it sends one:
+    // every status after this first one comes as an event, once.
+    let (receiver, status) = {
+        let status = app.shared.status.lock().unwrap_or_else(|p| p.into_inner());
+        (app.shared.events.subscribe(), status.clone())
+    };
     let first = Event::default()
         .event("status")
         .data(serde_json::to_string(&status).unwrap_or_default());

@@ -156,18 +156,17 @@ impl Shared {
         let _ = self.events.send((name, Arc::new(json)));
     }
 
-    fn send_status(&self) {
-        let status = self
-            .status
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .clone();
-        self.send("status", serde_json::to_string(&status).unwrap_or_default());
-    }
-
+    /// Changes the status and sends it, holding its lock while it does: a
+    /// page that opens its stream takes its first status and subscribes
+    /// under the same lock, so it gets each status once (not a change both
+    /// in its first status and again as an event).
     fn update(&self, f: impl FnOnce(&mut Status)) {
-        f(&mut self.status.lock().unwrap_or_else(|p| p.into_inner()));
-        self.send_status();
+        let mut status = lock(&self.status);
+        f(&mut status);
+        self.send(
+            "status",
+            serde_json::to_string(&*status).unwrap_or_default(),
+        );
     }
 }
 
