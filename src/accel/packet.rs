@@ -6,7 +6,9 @@
 //! tested against each ray (`Lanes::ray_mask`: one box, eight rays), so a
 //! ray visits only the boxes, and tests only the items, a traversal of its
 //! own would (for rays from one origin, whose packet bound is tight, the
-//! per-ray test waits for the leaves).
+//! per-ray test waits for the leaves). Where only one or two of the rays
+//! reach a node (rays that went apart), each is tested alone there
+//! (`Lanes::entries`, the single-ray test), which costs less.
 //!
 //! Why each ray gets the hit it gets alone: every box a ray's own test lets
 //! through, the packet's test lets through; items are tested by the same
@@ -57,6 +59,10 @@ fn packet_limit(limits: &[f32; PACKET], rays: u32) -> f32 {
     limit
 }
 
+/// Up to how many rays a node is tested ray by ray rather than by the
+/// packet's test.
+const ALONE_UP_TO: u32 = 2;
+
 /// The children of `node` that some ray in `rays` meets before its own
 /// limit: the packet's test of all eight first, then each child it lets
 /// through by each ray's own test (which removes what the packet's bound
@@ -71,6 +77,30 @@ fn children<L: Lanes>(
     rays: u32,
     limits: &[f32; PACKET],
 ) -> (u32, [f32; WIDTH], [u16; WIDTH]) {
+    if rays.count_ones() <= ALONE_UP_TO {
+        // Few rays left (they went apart): each ray's own test of the node
+        // costs less than the packet's test and a per-ray test per child.
+        let mut mask = 0;
+        let mut near = [f32::INFINITY; WIDTH];
+        let mut child_rays = [0u16; WIDTH];
+        let mut scan = rays;
+        while scan != 0 {
+            let k = scan.trailing_zeros() as usize;
+            scan &= scan - 1;
+            let (m, n) = lanes.entries(node, &packet.ray(k), limits[k]);
+            mask |= m;
+            let mut lanes_hit = m;
+            while lanes_hit != 0 {
+                let lane = lanes_hit.trailing_zeros() as usize;
+                lanes_hit &= lanes_hit - 1;
+                child_rays[lane] |= 1 << k;
+                if n[lane] < near[lane] {
+                    near[lane] = n[lane];
+                }
+            }
+        }
+        return (mask, near, child_rays);
+    }
     let (mut mask, near) = lanes.packet_entries(node, packet, packet_limit(limits, rays));
     let mut child_rays = [0u16; WIDTH];
     let mut scan = mask;

@@ -347,6 +347,17 @@ impl NodePacket {
     pub fn shares_origin(&self) -> bool {
         self.origin_lo == self.origin_hi
     }
+
+    /// Ray `k` alone, as [`NodeRay::new`] makes it.
+    #[inline(always)]
+    pub fn ray(&self, k: usize) -> NodeRay {
+        NodeRay {
+            origin: [self.origin[0][k], self.origin[1][k], self.origin[2][k]],
+            inv_dir: [self.inv_dir[0][k], self.inv_dir[1][k], self.inv_dir[2][k]],
+            near_row: self.near_row,
+            far_row: self.far_row,
+        }
+    }
 }
 
 /// The packet test of one node, one lane at a time: the reference the
