@@ -235,17 +235,7 @@ pub fn render_row(
         let mut hits = [None; PACKET];
         for s in 0..spp {
             for (k, (ray, rng)) in rays.iter_mut().zip(&mut rngs).enumerate().take(n) {
-                let offset = if spp == 1 {
-                    glam::DVec2::splat(0.5)
-                } else {
-                    strata.point(s, rng)
-                };
-                *ray = scene.camera.ray(
-                    f64::from(x0 + k as u32) + offset.x,
-                    f64::from(y) + offset.y,
-                    settings.width,
-                    settings.height,
-                );
+                *ray = camera_ray(scene, settings, &strata, s, x0 + k as u32, y, rng);
             }
             scene
                 .aggregate
@@ -279,17 +269,7 @@ pub fn render_pixel_recorded<R: Recorder>(
     let mut sum = DVec3::ZERO;
     let mut sample_radiance = DVec3::ZERO;
     for s in 0..spp {
-        let offset = if spp == 1 {
-            glam::DVec2::splat(0.5)
-        } else {
-            strata.point(s, &mut rng)
-        };
-        let ray = scene.camera.ray(
-            f64::from(x) + offset.x,
-            f64::from(y) + offset.y,
-            settings.width,
-            settings.height,
-        );
+        let ray = camera_ray(scene, settings, &strata, s, x, y, &mut rng);
         let radiance = if recorded.is_none_or(|k| k == s) {
             let r = tracer.radiance_recorded(&ray, &mut rng, stats, recorder);
             sample_radiance = r;
@@ -300,6 +280,31 @@ pub fn render_pixel_recorded<R: Recorder>(
         sum += radiance;
     }
     (sum / spp as f64, sample_radiance)
+}
+
+/// The camera ray of sample `s` of pixel (x, y): through the pixel's
+/// centre at one sample, else through a point of stratum `s` drawn from
+/// the pixel's stream `rng`.
+fn camera_ray(
+    scene: &Scene,
+    settings: &RenderSettings,
+    strata: &Strata,
+    s: usize,
+    x: u32,
+    y: u32,
+    rng: &mut PixelRng,
+) -> Ray {
+    let offset = if strata.len() == 1 {
+        glam::DVec2::splat(0.5)
+    } else {
+        strata.point(s, rng)
+    };
+    scene.camera.ray(
+        f64::from(x) + offset.x,
+        f64::from(y) + offset.y,
+        settings.width,
+        settings.height,
+    )
 }
 
 /// The seed of frame `frame`'s pixel streams: the scene's seed for frame

@@ -184,6 +184,16 @@ struct PathState {
 }
 
 impl PathState {
+    /// A camera ray's: depth 1, full weight, in the scene's outer medium.
+    fn camera() -> PathState {
+        PathState {
+            kind: RayKind::Camera,
+            depth: 1,
+            weight: DVec3::ONE,
+            media: Media::default(),
+        }
+    }
+
     fn child(&self, kind: RayKind, k: DVec3, media: Media) -> PathState {
         PathState {
             kind,
@@ -234,13 +244,7 @@ impl<'a> Whitted<'a> {
         stats: &mut RayStats,
         recorder: &mut R,
     ) -> DVec3 {
-        let path = PathState {
-            kind: RayKind::Camera,
-            depth: 1,
-            weight: DVec3::ONE,
-            media: Media::default(),
-        };
-        self.trace(ray, path, rng, stats, recorder)
+        self.trace(ray, PathState::camera(), rng, stats, recorder)
     }
 
     /// The colour seen along camera ray `ray` whose first hit, `hit`, is
@@ -254,13 +258,7 @@ impl<'a> Whitted<'a> {
         stats: &mut RayStats,
     ) -> DVec3 {
         stats.camera += 1;
-        let path = PathState {
-            kind: RayKind::Camera,
-            depth: 1,
-            weight: DVec3::ONE,
-            media: Media::default(),
-        };
-        self.shade(ray, path, hit, rng, stats, &mut ())
+        self.shade(ray, PathState::camera(), hit, rng, stats, &mut ())
     }
 
     fn trace<R: Recorder>(
