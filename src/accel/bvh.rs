@@ -604,6 +604,50 @@ mod tests {
         }
     }
 
+    #[test]
+    fn wide_nodes_with_free_slots_hold_only_the_binary_trees_leaves() {
+        // A node with a free slot has split every leaf it could (a merged
+        // binary subtree), so each of its leaves is one of the binary
+        // tree's: testing the smaller leaves costs no extra node visit.
+        let (mut merged, mut checked) = (0, 0);
+        for n in [5, 17, 300, 5000] {
+            let boxes = random_boxes(n, 7 + n as u64);
+            let mut items: Vec<BuildItem> = boxes
+                .iter()
+                .enumerate()
+                .map(|(i, b)| BuildItem::new(b, i as u32))
+                .collect();
+            let mut binary = vec![BvhNode::UNSET; 2 * n - 1];
+            let len = build_into(&mut items, 0, &mut binary, 0, 0);
+            binary.truncate(len);
+            let binary_leaves: std::collections::HashSet<(u32, u16)> = binary
+                .iter()
+                .filter(|b| b.count() > 0)
+                .map(|b| (b.offset(), b.count()))
+                .collect();
+            for node in wide::collapse(&binary) {
+                let slots: Vec<_> = node.slots().collect();
+                for &(_, child, count) in &slots {
+                    let is_binary_leaf = count == 0 || binary_leaves.contains(&(child, count));
+                    merged += usize::from(!is_binary_leaf);
+                    if slots.len() < wide::WIDTH {
+                        checked += 1;
+                        assert!(
+                            is_binary_leaf,
+                            "n = {n}: leaf ({child}, {count}) left merged"
+                        );
+                    }
+                }
+            }
+        }
+        // The invariant is not vacuous: nodes with free slots exist, and
+        // full ones still hold merged leaves.
+        assert!(
+            checked > 0 && merged > 0,
+            "{checked} checked, {merged} merged"
+        );
+    }
+
     /// Every kernel this CPU runs.
     fn kernels() -> Vec<Kernel> {
         let all: Vec<Kernel> = simd::SimdPath::ALL

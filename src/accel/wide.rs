@@ -136,25 +136,21 @@ fn as_leaf(nodes: &[BvhNode], c: usize) -> Option<(u32, u16)> {
 
 /// Builds the wide node for binary interior node `at`, returning its index.
 fn collapse_into(nodes: &[BvhNode], at: usize, wide: &mut Vec<WideNode>) -> u32 {
-    // Open up the child with the largest box until eight children show.
-    let child = |c: usize| (c, as_leaf(nodes, c));
-    let mut children = vec![child(at + 1), child(nodes[at].offset() as usize)];
-    while children.len() < WIDTH {
-        let Some((k, _)) = children
-            .iter()
-            .enumerate()
-            .filter(|(_, (_, leaf))| leaf.is_none())
-            .max_by(|a, b| {
-                let area = |c: usize| nodes[c].bounds().surface_area();
-                area(a.1.0).total_cmp(&area(b.1.0))
-            })
-        else {
-            break;
-        };
-        let (c, _) = children.remove(k);
-        children.insert(k, child(nodes[c].offset() as usize));
-        children.insert(k, child(c + 1));
-    }
+    let mut children = vec![
+        (at + 1, as_leaf(nodes, at + 1)),
+        (
+            nodes[at].offset() as usize,
+            as_leaf(nodes, nodes[at].offset() as usize),
+        ),
+    ];
+    // Open up the interior child with the largest box until eight
+    // children show.
+    while open_largest(nodes, &mut children, |_, leaf| leaf.is_none()) {}
+    // Slots still free (every child is a leaf): split merged leaves back
+    // into their binary halves, largest first. The node costs one test
+    // however many slots it fills, and smaller leaves hold fewer of the
+    // triangles a ray's box test lets through.
+    while open_largest(nodes, &mut children, |c, _| nodes[c].count() == 0) {}
     let index = wide.len();
     wide.push(WideNode::EMPTY_NODE);
     for (slot, &(c, leaf)) in children.iter().enumerate() {
@@ -167,6 +163,33 @@ fn collapse_into(nodes: &[BvhNode], at: usize, wide: &mut Vec<WideNode>) -> u32 
         wide[index] = w;
     }
     index as u32
+}
+
+/// Replaces the child with the largest box of those `openable` accepts
+/// (binary node, what `as_leaf` made of it) by its two binary children, if
+/// a slot is free and there is one; returns whether it did.
+fn open_largest(
+    nodes: &[BvhNode],
+    children: &mut Vec<(usize, Option<(u32, u16)>)>,
+    openable: impl Fn(usize, Option<(u32, u16)>) -> bool,
+) -> bool {
+    if children.len() >= WIDTH {
+        return false;
+    }
+    let area = |c: usize| nodes[c].bounds().surface_area();
+    let Some((k, _)) = children
+        .iter()
+        .enumerate()
+        .filter(|(_, (c, leaf))| openable(*c, *leaf))
+        .max_by(|a, b| area(a.1.0).total_cmp(&area(b.1.0)))
+    else {
+        return false;
+    };
+    let (c, _) = children.remove(k);
+    let right = nodes[c].offset() as usize;
+    children.insert(k, (right, as_leaf(nodes, right)));
+    children.insert(k, (c + 1, as_leaf(nodes, c + 1)));
+    true
 }
 
 fn set_slot(w: &mut WideNode, slot: usize, node: &BvhNode, child: u32, count: u16) {
