@@ -9,6 +9,7 @@
 
 use glam::DVec3;
 
+use super::simd::Job;
 use super::{Aggregate, PACKET, Shape, simd};
 use crate::geometry::Aabb;
 use crate::geometry::sphere::{sphere_blocks, sphere_first_root};
@@ -303,10 +304,15 @@ impl ShadowCandidates {
         aggregate: &Aggregate,
         feelers: &FeelerBatch<N>,
     ) -> [bool; N] {
-        simd::kernel().vectorize(|| self.any_hit_batch_here(aggregate, feelers))
+        simd::kernel().vectorize_job(AnyHitBatch {
+            candidates: self,
+            aggregate,
+            feelers,
+        })
     }
 
-    /// [`any_hit_batch`](Self::any_hit_batch), compiled into its caller.
+    /// [`any_hit_batch`](Self::any_hit_batch), compiled into its caller
+    /// (through [`AnyHitBatch`]).
     #[inline(always)]
     fn any_hit_batch_here<const N: usize>(
         &self,
@@ -373,10 +379,15 @@ impl ShadowCandidates {
         aggregate: &Aggregate,
         feelers: &FeelerBatch<N>,
     ) -> [Option<Blocker>; N] {
-        simd::kernel().vectorize(|| self.nearest_batch_here(aggregate, feelers))
+        simd::kernel().vectorize_job(NearestBatch {
+            candidates: self,
+            aggregate,
+            feelers,
+        })
     }
 
-    /// [`nearest_batch`](Self::nearest_batch), compiled into its caller.
+    /// [`nearest_batch`](Self::nearest_batch), compiled into its caller
+    /// (through [`NearestBatch`]).
     #[inline(always)]
     fn nearest_batch_here<const N: usize>(
         &self,
@@ -443,6 +454,38 @@ impl ShadowCandidates {
             };
         }
         blockers
+    }
+}
+
+/// [`ShadowCandidates::any_hit_batch`] as a [`Job`].
+struct AnyHitBatch<'a, const N: usize> {
+    candidates: &'a ShadowCandidates,
+    aggregate: &'a Aggregate,
+    feelers: &'a FeelerBatch<N>,
+}
+
+impl<const N: usize> Job for AnyHitBatch<'_, N> {
+    type Output = [bool; N];
+    #[inline(always)]
+    fn run(self) -> [bool; N] {
+        self.candidates
+            .any_hit_batch_here(self.aggregate, self.feelers)
+    }
+}
+
+/// [`ShadowCandidates::nearest_batch`] as a [`Job`].
+struct NearestBatch<'a, const N: usize> {
+    candidates: &'a ShadowCandidates,
+    aggregate: &'a Aggregate,
+    feelers: &'a FeelerBatch<N>,
+}
+
+impl<const N: usize> Job for NearestBatch<'_, N> {
+    type Output = [Option<Blocker>; N];
+    #[inline(always)]
+    fn run(self) -> [Option<Blocker>; N] {
+        self.candidates
+            .nearest_batch_here(self.aggregate, self.feelers)
     }
 }
 

@@ -7,7 +7,7 @@
 
 use std::arch::x86_64::*;
 
-use super::{Lanes, NodePacket, NodeRay, PACKET, SLACK};
+use super::{Job, Lanes, NodePacket, NodeRay, PACKET, SLACK};
 use crate::accel::packet::{self, PacketAnyTest, PacketClosestTest, PacketEntry};
 use crate::accel::wide::{self, AnyTest, ClosestTest, Stack, StackEntry, WIDTH, WideNode};
 
@@ -29,6 +29,25 @@ impl Avx2 {
         // SAFETY: `self` exists only where `detect` found AVX2.
         unsafe { with_avx2(f) }
     }
+}
+
+impl Avx2 {
+    /// Runs `job` in a function compiled for AVX2 (see
+    /// `Kernel::vectorize_job`).
+    #[inline]
+    pub fn vectorize_job<J: Job>(self, job: J) -> J::Output {
+        // SAFETY: `self` exists only where `detect` found AVX2.
+        unsafe { job_with_avx2(job) }
+    }
+}
+
+/// `job.run()`, with AVX2 enabled for its code, which `Job::run` inlines.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[target_feature(enable = "avx2")]
+unsafe fn job_with_avx2<J: Job>(job: J) -> J::Output {
+    job.run()
 }
 
 /// `f()`, with AVX2 enabled for the code of `f` inlined here.
