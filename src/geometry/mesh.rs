@@ -7,7 +7,7 @@ use thiserror::Error;
 
 use super::Aabb;
 use super::triangle::{
-    TriangleHit, WatertightLanes, WatertightRay, triangle_hit, triangle_hit_lanes,
+    TriangleHit, WatertightLanes, WatertightRay, triangle_hit, triangle_hit_as, triangle_hit_lanes,
 };
 use crate::accel::bvh::{AnyTest, Bvh, ClosestTest};
 use crate::accel::packet::{PacketAnyTest, PacketClosestTest};
@@ -265,7 +265,12 @@ impl Mesh {
     }
 
     /// [`any_hit`](Self::any_hit) on a given SIMD kernel.
-    #[inline]
+    ///
+    /// The traversal is compiled once per axis permutation of the
+    /// watertight test, and the ray's picks one: each leaf test then reads
+    /// the coordinates it needs directly. Not inlined: six traversals (the
+    /// SSE2 and scalar ones inlined) make it too big to copy into callers.
+    #[inline(never)]
     pub(crate) fn any_hit_on(
         &self,
         kernel: Kernel,
@@ -274,14 +279,35 @@ impl Mesh {
         t_min: f64,
         t_max: f64,
     ) -> bool {
-        let leaf = BlockingTriangle {
+        let ray = WatertightRay::new(origin, direction);
+        let node_ray = NodeRay::new(origin, direction);
+        match ray.permutation() {
+            0 => self.any_as::<0>(kernel, ray, &node_ray, t_min, t_max),
+            1 => self.any_as::<1>(kernel, ray, &node_ray, t_min, t_max),
+            2 => self.any_as::<2>(kernel, ray, &node_ray, t_min, t_max),
+            3 => self.any_as::<3>(kernel, ray, &node_ray, t_min, t_max),
+            4 => self.any_as::<4>(kernel, ray, &node_ray, t_min, t_max),
+            _ => self.any_as::<5>(kernel, ray, &node_ray, t_min, t_max),
+        }
+    }
+
+    /// [`any_hit_on`](Self::any_hit_on) for a ray of axis permutation `P`.
+    #[inline(always)]
+    fn any_as<const P: u8>(
+        &self,
+        kernel: Kernel,
+        ray: WatertightRay,
+        node_ray: &NodeRay,
+        t_min: f64,
+        t_max: f64,
+    ) -> bool {
+        let leaf = BlockingTriangle::<P> {
             mesh: self,
-            ray: WatertightRay::new(origin, direction),
+            ray,
             t_min,
             t_max,
         };
-        self.bvh
-            .any_on(kernel, &NodeRay::new(origin, direction), t_max, leaf)
+        self.bvh.any_on(kernel, node_ray, t_max, leaf)
     }
 
     /// [`intersect`](Self::intersect) for each of up to [`PACKET`] rays
@@ -558,18 +584,18 @@ fn closer_triangle(
 }
 
 /// The any-hit leaf test.
-struct BlockingTriangle<'a> {
+struct BlockingTriangle<'a, const P: u8> {
     mesh: &'a Mesh,
     ray: WatertightRay,
     t_min: f64,
     t_max: f64,
 }
 
-impl AnyTest for BlockingTriangle<'_> {
+impl<const P: u8> AnyTest for BlockingTriangle<'_, P> {
     #[inline(always)]
     fn test(&mut self, position: usize) -> bool {
         let [a, b, c] = self.mesh.corners(position);
-        triangle_hit(&self.ray, a, b, c, self.t_min, self.t_max).is_some()
+        triangle_hit_as::<P>(&self.ray, a, b, c, self.t_min, self.t_max).is_some()
     }
 }
 

@@ -14,17 +14,37 @@ use glam::DVec3;
 #[derive(Clone, Copy, Debug)]
 pub struct WatertightRay {
     origin: DVec3,
-    /// Axis indices: kz is the direction's largest |component|.
-    kx: usize,
-    ky: usize,
-    kz: usize,
+    /// Axis indices (kx, ky, kz): kz is the direction's largest
+    /// |component|.
+    axes: [u8; 3],
+    /// Which of the six (kx, ky, kz) it is: 2·kz, plus 1 where kx and ky
+    /// are swapped (see [`triangle_hit`]).
+    permutation: u8,
     /// Shear constants Sx = Dx/Dz, Sy = Dy/Dz, Sz = 1/Dz.
     sx: f64,
     sy: f64,
     sz: f64,
 }
 
+/// The axes (kx, ky, kz) of each permutation the watertight test uses:
+/// 2·kz, plus 1 where the ray runs towards −kz (kx and ky swapped).
+const AXES: [[usize; 3]; 6] = [
+    [1, 2, 0],
+    [2, 1, 0],
+    [2, 0, 1],
+    [0, 2, 1],
+    [0, 1, 2],
+    [1, 0, 2],
+];
+
 impl WatertightRay {
+    /// Which of the six axis permutations the test uses for this ray
+    /// (0 to 5).
+    #[inline(always)]
+    pub fn permutation(&self) -> u8 {
+        self.permutation
+    }
+
     /// Prepares a ray with the given origin and (not necessarily unit)
     /// direction.
     #[inline]
@@ -38,18 +58,14 @@ impl WatertightRay {
         } else {
             2
         };
-        let next = [1, 2, 0];
-        let mut kx = next[kz];
-        let mut ky = next[kx];
-        // Keep the winding of the projected triangle.
-        if d[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
-        }
+        // Keep the winding of the projected triangle: kx and ky follow kz
+        // in cyclic order, swapped where the ray runs towards −kz.
+        let permutation = 2 * kz as u8 + u8::from(d[kz] < 0.0);
+        let [kx, ky, _] = AXES[usize::from(permutation)];
         WatertightRay {
             origin,
-            kx,
-            ky,
-            kz,
+            axes: [kx as u8, ky as u8, kz as u8],
+            permutation,
             sx: d[kx] / d[kz],
             sy: d[ky] / d[kz],
             sz: 1.0 / d[kz],
@@ -80,15 +96,48 @@ pub fn triangle_hit(
     // The vertices relative to the origin, permuted to (kx, ky, kz): an
     // array lookup (the index masked into range, so unchecked) rather than
     // a three-way branch per coordinate.
-    let (kx, ky, kz) = (ray.kx & 3, ray.ky & 3, ray.kz & 3);
+    let [kx, ky, kz] = ray.axes.map(|k| usize::from(k & 3));
     let permute = |p: DVec3| {
         let d = p - ray.origin;
         let d = [d.x, d.y, d.z, 0.0];
         (d[kx], d[ky], d[kz])
     };
-    let (ax, ay, az) = permute(a);
-    let (bx, by, bz) = permute(b);
-    let (cx, cy, cz) = permute(c);
+    sheared_test(ray, [permute(a), permute(b), permute(c)], t_min, t_max)
+}
+
+/// [`triangle_hit`] for a ray of permutation `P` (see
+/// [`WatertightRay::permutation`]): the same operations, with the axes as
+/// constants, so each coordinate is read directly. A run-time index into
+/// the coordinates goes through memory (a store and a load per
+/// coordinate); a traversal compiled for one permutation (see
+/// `Mesh::any_hit`) does without.
+#[inline(always)]
+pub fn triangle_hit_as<const P: u8>(
+    ray: &WatertightRay,
+    a: DVec3,
+    b: DVec3,
+    c: DVec3,
+    t_min: f64,
+    t_max: f64,
+) -> Option<TriangleHit> {
+    debug_assert_eq!(ray.permutation, P);
+    let [kx, ky, kz] = AXES[P as usize];
+    let permute = |p: DVec3| {
+        let d = (p - ray.origin).to_array();
+        (d[kx], d[ky], d[kz])
+    };
+    sheared_test(ray, [permute(a), permute(b), permute(c)], t_min, t_max)
+}
+
+/// The rest of the watertight test, from the vertices relative to the
+/// origin on axes (kx, ky, kz).
+#[inline(always)]
+fn sheared_test(
+    ray: &WatertightRay,
+    [(ax, ay, az), (bx, by, bz), (cx, cy, cz)]: [(f64, f64, f64); 3],
+    t_min: f64,
+    t_max: f64,
+) -> Option<TriangleHit> {
     // Shear the vertices so the ray runs along +z.
     let ax = ax - ray.sx * az;
     let ay = ay - ray.sy * az;
@@ -150,7 +199,7 @@ impl WatertightLanes {
     #[inline(always)]
     pub fn new(rays: &[WatertightRay; LANES]) -> Option<Self> {
         let first = &rays[0];
-        let axes = [first.kx, first.ky, first.kz];
+        let axes = first.axes.map(usize::from);
         let mut lanes = WatertightLanes {
             origin: [[0.0; LANES]; 3],
             sx: [0.0; LANES],
@@ -161,7 +210,7 @@ impl WatertightLanes {
         // Loops and `&`, not `map` and `any`: this runs once per packet.
         let mut shared = true;
         for (k, r) in rays.iter().enumerate() {
-            shared &= (r.kx == first.kx) & (r.ky == first.ky) & (r.kz == first.kz);
+            shared &= r.axes == first.axes;
             let o = [r.origin.x, r.origin.y, r.origin.z, 0.0];
             for (row, &axis) in lanes.origin.iter_mut().zip(&axes) {
                 row[k] = o[axis & 3];
@@ -275,6 +324,61 @@ mod tests {
             0.0,
             f64::INFINITY,
         )
+    }
+
+    #[test]
+    fn each_permutation_is_the_textbook_choice_of_axes() {
+        // Woop et al.: kz the largest |component| (the first on ties), kx
+        // and ky the next two in cyclic order, swapped where d[kz] < 0.
+        let mut corners = PixelRng::new(41, 0, 0);
+        let mut seen = [false; 6];
+        let special = [
+            DVec3::new(1.0, 1.0, 1.0),
+            DVec3::new(-1.0, 1.0, 0.0),
+            DVec3::new(0.0, -2.0, 2.0),
+            DVec3::new(-0.0, 0.0, -3.0),
+        ];
+        let mut directions = PixelRng::new(43, 0, 0);
+        let random = (0..2000).map(|_| {
+            DVec3::new(
+                directions.uniform(),
+                directions.uniform(),
+                directions.uniform(),
+            ) * 2.0
+                - DVec3::ONE
+        });
+        for d in special.into_iter().chain(random) {
+            let ray = WatertightRay::new(DVec3::ZERO, d);
+            let a = d.abs().to_array();
+            let kz = (0..3).fold(0, |k, i| if a[i] > a[k] { i } else { k });
+            let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
+            if d[kz] < 0.0 {
+                std::mem::swap(&mut kx, &mut ky);
+            }
+            assert_eq!(ray.axes.map(usize::from), [kx, ky, kz], "{d}");
+            let p = usize::from(ray.permutation());
+            assert_eq!(AXES[p], [kx, ky, kz], "{d}");
+            seen[p] = true;
+            // The test compiled for the ray's permutation is the one that
+            // reads it at run time.
+            let tri = [
+                DVec3::new(corners.uniform(), corners.uniform(), corners.uniform()),
+                DVec3::new(corners.uniform(), corners.uniform(), corners.uniform()),
+                DVec3::new(corners.uniform(), corners.uniform(), corners.uniform()),
+            ]
+            .map(|v| v * 2.0 - DVec3::ONE + d);
+            let any = triangle_hit(&ray, tri[0], tri[1], tri[2], 0.0, f64::INFINITY);
+            let fixed = match p {
+                0 => triangle_hit_as::<0>,
+                1 => triangle_hit_as::<1>,
+                2 => triangle_hit_as::<2>,
+                3 => triangle_hit_as::<3>,
+                4 => triangle_hit_as::<4>,
+                _ => triangle_hit_as::<5>,
+            }(&ray, tri[0], tri[1], tri[2], 0.0, f64::INFINITY);
+            assert_eq!(any, fixed, "{d}");
+        }
+        assert!(seen.iter().all(|&s| s));
     }
 
     #[test]
