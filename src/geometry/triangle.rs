@@ -93,16 +93,7 @@ pub fn triangle_hit(
     t_min: f64,
     t_max: f64,
 ) -> Option<TriangleHit> {
-    // The vertices relative to the origin, permuted to (kx, ky, kz): an
-    // array lookup (the index masked into range, so unchecked) rather than
-    // a three-way branch per coordinate.
-    let [kx, ky, kz] = ray.axes.map(|k| usize::from(k & 3));
-    let permute = |p: DVec3| {
-        let d = p - ray.origin;
-        let d = [d.x, d.y, d.z, 0.0];
-        (d[kx], d[ky], d[kz])
-    };
-    sheared_test(ray, [permute(a), permute(b), permute(c)], t_min, t_max)
+    permuted_test(ray, ray.axes.map(usize::from), a, b, c, t_min, t_max)
 }
 
 /// [`triangle_hit`] for a ray of permutation `P` (see
@@ -121,23 +112,32 @@ pub fn triangle_hit_as<const P: u8>(
     t_max: f64,
 ) -> Option<TriangleHit> {
     debug_assert_eq!(ray.permutation, P);
-    let [kx, ky, kz] = AXES[P as usize];
-    let permute = |p: DVec3| {
-        let d = (p - ray.origin).to_array();
-        (d[kx], d[ky], d[kz])
-    };
-    sheared_test(ray, [permute(a), permute(b), permute(c)], t_min, t_max)
+    permuted_test(ray, AXES[usize::from(P)], a, b, c, t_min, t_max)
 }
 
-/// The rest of the watertight test, from the vertices relative to the
-/// origin on axes (kx, ky, kz).
+/// The watertight test with the ray's axes given: at run time, or as
+/// constants, which the compiler then folds into direct reads.
 #[inline(always)]
-fn sheared_test(
+fn permuted_test(
     ray: &WatertightRay,
-    [(ax, ay, az), (bx, by, bz), (cx, cy, cz)]: [(f64, f64, f64); 3],
+    [kx, ky, kz]: [usize; 3],
+    a: DVec3,
+    b: DVec3,
+    c: DVec3,
     t_min: f64,
     t_max: f64,
 ) -> Option<TriangleHit> {
+    // The vertices relative to the origin, permuted to (kx, ky, kz): an
+    // array lookup (the index masked into range, so unchecked) rather than
+    // a three-way branch per coordinate.
+    let permute = |p: DVec3| {
+        let d = p - ray.origin;
+        let d = [d.x, d.y, d.z, 0.0];
+        (d[kx & 3], d[ky & 3], d[kz & 3])
+    };
+    let (ax, ay, az) = permute(a);
+    let (bx, by, bz) = permute(b);
+    let (cx, cy, cz) = permute(c);
     // Shear the vertices so the ray runs along +z.
     let ax = ax - ray.sx * az;
     let ay = ay - ray.sy * az;
