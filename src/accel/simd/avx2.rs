@@ -29,9 +29,7 @@ impl Avx2 {
         // SAFETY: `self` exists only where `detect` found AVX2.
         unsafe { with_avx2(f) }
     }
-}
 
-impl Avx2 {
     /// Runs `job` in a function compiled for AVX2 (see
     /// `Kernel::vectorize_job`).
     #[inline]
