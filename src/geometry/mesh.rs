@@ -7,7 +7,8 @@ use thiserror::Error;
 
 use super::Aabb;
 use super::triangle::{
-    TriangleHit, WatertightLanes, WatertightRay, triangle_hit, triangle_hit_as, triangle_hit_lanes,
+    TriangleHit, WatertightLanes, WatertightRay, triangle_hit, triangle_hit_as,
+    triangle_hit_dispatched, triangle_hit_lanes,
 };
 use crate::accel::bvh::{AnyTest, Bvh, ClosestTest};
 use crate::accel::packet::{PacketAnyTest, PacketClosestTest};
@@ -621,7 +622,7 @@ impl PacketAnyTest for BlockingTriangles<'_> {
         while scan != 0 {
             let k = scan.trailing_zeros() as usize;
             scan &= scan - 1;
-            let hit = triangle_hit(&one_by_one[k], a, b, c, self.t_min, self.t_max[k]);
+            let hit = triangle_hit_dispatched(&one_by_one[k], a, b, c, self.t_min, self.t_max[k]);
             blocked |= u32::from(hit.is_some()) << k;
         }
         blocked

@@ -115,6 +115,29 @@ pub fn triangle_hit_as<const P: u8>(
     permuted_test(ray, AXES[usize::from(P)], a, b, c, t_min, t_max)
 }
 
+/// [`triangle_hit`] by a branch per test to the form compiled for the
+/// ray's permutation (see [`triangle_hit_as`]). For the rays of a packet
+/// tested one by one: they share one permutation as a rule, so the branch
+/// goes the same way test after test.
+#[inline(always)]
+pub fn triangle_hit_dispatched(
+    ray: &WatertightRay,
+    a: DVec3,
+    b: DVec3,
+    c: DVec3,
+    t_min: f64,
+    t_max: f64,
+) -> Option<TriangleHit> {
+    match ray.permutation {
+        0 => triangle_hit_as::<0>(ray, a, b, c, t_min, t_max),
+        1 => triangle_hit_as::<1>(ray, a, b, c, t_min, t_max),
+        2 => triangle_hit_as::<2>(ray, a, b, c, t_min, t_max),
+        3 => triangle_hit_as::<3>(ray, a, b, c, t_min, t_max),
+        4 => triangle_hit_as::<4>(ray, a, b, c, t_min, t_max),
+        _ => triangle_hit_as::<5>(ray, a, b, c, t_min, t_max),
+    }
+}
+
 /// The watertight test with the ray's axes given: at run time, or as
 /// constants, which the compiler then folds into direct reads.
 #[inline(always)]
@@ -377,6 +400,9 @@ mod tests {
                 _ => triangle_hit_as::<5>,
             }(&ray, tri[0], tri[1], tri[2], 0.0, f64::INFINITY);
             assert_eq!(any, fixed, "{d}");
+            let dispatched =
+                triangle_hit_dispatched(&ray, tri[0], tri[1], tri[2], 0.0, f64::INFINITY);
+            assert_eq!(any, dispatched, "{d}");
         }
         assert!(seen.iter().all(|&s| s));
     }
