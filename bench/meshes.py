@@ -10,8 +10,9 @@ threaded and on all threads; then Embree builds and traces the very same
 rays (embreex traces on one thread, so the single-threaded ratio is the
 like-for-like one). Prism's primary and shadow rays are also traced in
 packets of eight (camera rays in 4x2 tiles, shadow rays of neighbouring
-hits), as Mitsuba traces its batches; those rows still divide by Embree's
-one-ray-at-a-time rate. Prints one table with Prism/Embree ratios, and the
+hits), as Mitsuba traces its batches, and the incoherent rays in streams
+(eight traced in turns, so one ray's cache misses wait while the others
+step); those rows still divide by Embree's one-ray-at-a-time rate. Prints one table with Prism/Embree ratios, and the
 obvhs crate's compressed wide BVH on the same rays (one thread), the
 candidate replacement for Prism's own BVH, and Mitsuba 3 (its LLVM variant,
 one thread: closest hits and any-hit `ray_test`) where it can run.
@@ -184,6 +185,12 @@ def main():
             agree = abs(hits - p["hits"]) <= max(2, len(o) * 1e-3)
             rows.append((name, f"{kind} Mrays/s (1 thread, all threads)", p["mrays_1"], p["mrays_n"], e_rate,
                          (p["mrays_1"] / e_rate, agree)))
+            if kind == "incoherent" and "streams" in prism:
+                # The same rays traced by Prism eight at a time in turns
+                # (Mesh::intersect_stream), against Embree one at a time.
+                st = prism["streams"]
+                rows.append((name, "incoherent in streams of 8 Mrays/s", st["incoherent_mrays_1"],
+                             st["incoherent_mrays_n"], e_rate, (st["incoherent_mrays_1"] / e_rate, agree)))
             if kind in ("primary", "shadow"):
                 # The same rays traced by Prism in packets of eight (camera
                 # rays in 4x2 tiles), against Embree one ray at a time.

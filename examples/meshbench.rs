@@ -19,6 +19,7 @@ use std::time::Instant;
 use glam::DVec3;
 use prism::accel::PACKET;
 use prism::geometry::Mesh;
+use prism::geometry::mesh::MeshHit;
 use prism::math::Frame;
 use prism::math::rng::PixelRng;
 use prism::scene::models::load_model;
@@ -45,6 +46,9 @@ impl Rays {
 }
 
 /// Best of 3 wall times of `run`, and its result.
+/// Rays per parallel task of the streamed incoherent query.
+const STREAM_PART: usize = 1024;
+
 fn best_of_3<T>(mut run: impl FnMut() -> T) -> (f64, T) {
     let mut best = f64::INFINITY;
     let mut out = None;
@@ -289,6 +293,44 @@ fn main() -> anyhow::Result<()> {
         }
     }
 
+    // Incoherent rays traced in turns, STREAM at a time (see
+    // Mesh::intersect_stream); each answer checked against the ray's own.
+    let pairs: Vec<(DVec3, DVec3)> = incoherent
+        .origins
+        .iter()
+        .zip(&incoherent.directions)
+        .map(|(&o, &d)| (o, d))
+        .collect();
+    let stream_part = |range: std::ops::Range<usize>, hits: &mut Vec<Option<MeshHit>>| {
+        hits.clear();
+        hits.resize(range.len(), None);
+        mesh.intersect_stream(&pairs[range.clone()], 0.0, &incoherent.t_max[range], hits);
+        hits.iter().flatten().count()
+    };
+    let stream_1 = || stream_part(0..pairs.len(), &mut Vec::new());
+    let stream_n = || {
+        (0..pairs.len().div_ceil(STREAM_PART))
+            .into_par_iter()
+            .map_init(Vec::new, |hits, c| {
+                stream_part(
+                    c * STREAM_PART..pairs.len().min((c + 1) * STREAM_PART),
+                    hits,
+                )
+            })
+            .sum::<usize>()
+    };
+    {
+        let mut streamed = vec![None; pairs.len()];
+        mesh.intersect_stream(&pairs, 0.0, &incoherent.t_max, &mut streamed);
+        for (i, &(o, d)) in pairs.iter().enumerate() {
+            let alone = mesh.intersect(o, d, 0.0, incoherent.t_max[i]);
+            anyhow::ensure!(
+                streamed[i] == alone,
+                "ray {i}: the stream's hit differs from the ray's own"
+            );
+        }
+    }
+
     let (p1, primary_hits) = best_of_3(|| closest_1(&primary));
     let (pn, _) = best_of_3(|| closest_n(&primary));
     let (i1, incoherent_hits) = best_of_3(|| closest_1(&incoherent));
@@ -300,6 +342,9 @@ fn main() -> anyhow::Result<()> {
     let (ppn, _) = best_of_3(|| closest_packet_n(&tiled));
     let (sp1, _) = best_of_3(|| any_packet_1(&shadow));
     let (spn, _) = best_of_3(|| any_packet_n(&shadow));
+
+    let (st1, _) = best_of_3(stream_1);
+    let (stn, _) = best_of_3(stream_n);
 
     let obvhs = obvhs_rates(&triangles_in, &primary, &shadow);
 
@@ -323,6 +368,7 @@ fn main() -> anyhow::Result<()> {
          \"incoherent\": {{\"rays\": {}, \"hits\": {incoherent_hits}, \"mrays_1\": {}, \"mrays_n\": {}}}, \
          \"shadow\": {{\"rays\": {}, \"hits\": {shadow_hits}, \"mrays_1\": {}, \"mrays_n\": {}}}, \
          \"packets\": {{\"primary_mrays_1\": {}, \"primary_mrays_n\": {}, \"shadow_mrays_1\": {}, \"shadow_mrays_n\": {}}}, \
+         \"streams\": {{\"incoherent_mrays_1\": {}, \"incoherent_mrays_n\": {}}}, \
          \"obvhs\": {{\"build_s\": {}, \"primary_mrays_1\": {}, \"shadow_mrays_1\": {}}}}}",
         mesh.triangle_count(),
         mesh.memory_bytes() as f64 / 1e6,
@@ -341,6 +387,8 @@ fn main() -> anyhow::Result<()> {
         rate(primary.origins.len(), ppn),
         rate(shadow.origins.len(), sp1),
         rate(shadow.origins.len(), spn),
+        rate(incoherent.origins.len(), st1),
+        rate(incoherent.origins.len(), stn),
         obvhs.0,
         obvhs.1,
         obvhs.2,

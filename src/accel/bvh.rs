@@ -9,7 +9,7 @@ use glam::{DVec3, Vec3};
 use super::packet::{PacketAnyTest, PacketClosestTest};
 use super::simd::{self, Kernel, NodePacket, NodeRay, PACKET};
 use super::wide::{self, WideNode};
-pub use super::wide::{AnyTest, ClosestTest};
+pub use super::wide::{AnyTest, ClosestTest, Fetch};
 use crate::geometry::Aabb;
 
 /// Items per leaf at most; fewer if the SAH says a split pays.
@@ -234,6 +234,30 @@ impl Bvh {
         } else {
             let mut stack = Vec::with_capacity(self.stack_need);
             kernel.closest(&self.wide, ray, t_max, &mut stack, test)
+        }
+    }
+
+    /// [`closest`](Self::closest) for the first `count` of K rays, in turns
+    /// (see `wide::closest_stream`): `tests[k]` and `t_max[k]` are ray k's.
+    /// Each ray's final limit and the items it is tested against are what
+    /// `closest` gives it alone.
+    #[inline]
+    pub(crate) fn closest_stream_on<T: ClosestTest, const K: usize>(
+        &self,
+        kernel: Kernel,
+        rays: &[NodeRay; K],
+        count: usize,
+        t_max: &mut [f64; K],
+        tests: &mut [T; K],
+    ) {
+        if self.stack_need <= wide::STACK {
+            let mut stacks: [ArrayVec<_, { wide::STACK }>; K] =
+                std::array::from_fn(|_| ArrayVec::new());
+            kernel.closest_stream(&self.wide, rays, count, t_max, &mut stacks, tests);
+        } else {
+            let mut stacks: [Vec<_>; K] =
+                std::array::from_fn(|_| Vec::with_capacity(self.stack_need));
+            kernel.closest_stream(&self.wide, rays, count, t_max, &mut stacks, tests);
         }
     }
 

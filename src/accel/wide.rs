@@ -242,6 +242,22 @@ impl<T> Stack<T> for Vec<T> {
 pub trait ClosestTest {
     /// Tests item `position` against the ray up to `t_max`.
     fn test(&mut self, position: usize, t_max: f64) -> Option<f64>;
+
+    /// Asks the cache for what testing the `count` items from `position`
+    /// will read: first (`Fetch::Items`) the items, then (`Fetch::Data`)
+    /// what they point to. A hint only; [`closest_stream`] gives other
+    /// rays a turn between the two and before the test.
+    #[inline(always)]
+    fn prefetch(&self, _position: usize, _count: usize, _what: Fetch) {}
+}
+
+/// What [`ClosestTest::prefetch`] asks for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fetch {
+    /// A leaf's items (a mesh's triangles: their vertex indices).
+    Items,
+    /// What the items point to (the vertices).
+    Data,
 }
 
 impl<F: FnMut(usize, f64) -> Option<f64>> ClosestTest for F {
@@ -362,6 +378,117 @@ pub fn closest<L: Lanes>(
                     limit = NodeRay::box_limit(t_max);
                 }
             }
+        }
+    }
+}
+
+/// Closest-hit traversal of the first `count` of K rays in turns, each
+/// ray with its own stack, limit and leaf test: what [`closest`] does for
+/// each, one step per turn, where a step is a node visit, a leaf's items
+/// asked for, its data asked for, or its test. What a ray will read next
+/// is prefetched at the end of its step, so its cache misses wait while
+/// the other rays take theirs: on a mesh larger than the cache, incoherent
+/// rays otherwise wait on a node, a leaf's indices, then its vertices, one
+/// after the other. Each ray visits the nodes and tests the items its own
+/// traversal would, so its answer is its answer alone.
+#[inline(always)]
+pub fn closest_stream<L: Lanes, T: ClosestTest, const K: usize>(
+    lanes: L,
+    wide: &[WideNode],
+    rays: &[NodeRay; K],
+    count: usize,
+    t_max: &mut [f64; K],
+    stacks: &mut [impl Stack<StackEntry>; K],
+    tests: &mut [T; K],
+) {
+    /// Where a ray's traversal stands.
+    #[derive(Clone, Copy)]
+    enum Step {
+        Node(usize),
+        /// A leaf's first item and count, its data asked for or not.
+        Leaf(usize, usize, Fetch),
+        Pop,
+        Done,
+    }
+    if wide.is_empty() {
+        return;
+    }
+    let mut limit: [f32; K] = std::array::from_fn(|k| NodeRay::box_limit(t_max[k]));
+    let mut step = [Step::Node(0); K];
+    let mut active: u32 = (1u32 << count.min(K)) - 1;
+    while active != 0 {
+        let mut scan = active;
+        while scan != 0 {
+            let k = scan.trailing_zeros() as usize;
+            scan &= scan - 1;
+            let stack = &mut stacks[k];
+            let mut next = step[k];
+            match next {
+                Step::Node(at) => {
+                    let node = &wide[at];
+                    let (mask, near) = lanes.entries(node, &rays[k], limit[k]);
+                    next = Step::Pop;
+                    if mask != 0 {
+                        let first = nearest_lane(mask, &near);
+                        let mut rest = mask & !(1 << first);
+                        let base = stack.len();
+                        while rest != 0 {
+                            let lane = rest.trailing_zeros() as usize;
+                            rest &= rest - 1;
+                            let item = StackEntry {
+                                index: node.child[lane],
+                                count: node.count[lane].into(),
+                                entry: near[lane],
+                            };
+                            push_in_order(stack, base, item, |e| e.entry);
+                        }
+                        let (child, items) =
+                            (node.child[first] as usize, node.count[first] as usize);
+                        next = if items == 0 {
+                            lanes.prefetch(&wide[child]);
+                            Step::Node(child)
+                        } else {
+                            tests[k].prefetch(child, items, Fetch::Items);
+                            Step::Leaf(child, items, Fetch::Items)
+                        };
+                    }
+                }
+                Step::Leaf(start, items, Fetch::Items) => {
+                    tests[k].prefetch(start, items, Fetch::Data);
+                    next = Step::Leaf(start, items, Fetch::Data);
+                }
+                Step::Leaf(start, items, Fetch::Data) => {
+                    for position in start..start + items {
+                        if let Some(t) = tests[k].test(position, t_max[k]) {
+                            t_max[k] = t;
+                            limit[k] = NodeRay::box_limit(t);
+                        }
+                    }
+                    next = Step::Pop;
+                }
+                Step::Pop | Step::Done => {}
+            }
+            if let Step::Pop = next {
+                next = Step::Done;
+                while let Some(e) = stack.pop() {
+                    if e.entry > limit[k] {
+                        continue;
+                    }
+                    let (at, items) = (e.index as usize, e.count as usize);
+                    next = if items == 0 {
+                        lanes.prefetch(&wide[at]);
+                        Step::Node(at)
+                    } else {
+                        tests[k].prefetch(at, items, Fetch::Items);
+                        Step::Leaf(at, items, Fetch::Items)
+                    };
+                    break;
+                }
+            }
+            if let Step::Done = next {
+                active &= !(1 << k);
+            }
+            step[k] = next;
         }
     }
 }

@@ -10,7 +10,7 @@ use super::triangle::{
     TriangleHit, WatertightLanes, WatertightRay, triangle_hit, triangle_hit_as,
     triangle_hit_dispatched, triangle_hit_lanes,
 };
-use crate::accel::bvh::{AnyTest, Bvh, ClosestTest};
+use crate::accel::bvh::{AnyTest, Bvh, ClosestTest, Fetch};
 use crate::accel::packet::{PacketAnyTest, PacketClosestTest};
 use crate::accel::simd::{self, Kernel};
 use crate::accel::{NodePacket, NodeRay, PACKET};
@@ -260,6 +260,61 @@ impl Mesh {
         Some(self.surface(triangle, h.barycentric, h.t))
     }
 
+    /// [`intersect`](Self::intersect) for each of `rays` (origin and
+    /// direction; `t_max[k]` ray k's limit, `hits[k]` its answer), traced
+    /// [`STREAM`] at a time in turns, so that one ray's cache misses wait
+    /// while the others take their steps. For incoherent rays through a
+    /// mesh larger than the cache (on a cache-resident one, the turns cost
+    /// more than they hide). Each answer is, to the bit, what `intersect`
+    /// gives that ray alone.
+    ///
+    /// # Panics
+    /// If `t_max` or `hits` is not as long as `rays`.
+    pub fn intersect_stream(
+        &self,
+        rays: &[(DVec3, DVec3)],
+        t_min: f64,
+        t_max: &[f64],
+        hits: &mut [Option<MeshHit>],
+    ) {
+        self.intersect_stream_on(simd::kernel(), rays, t_min, t_max, hits);
+    }
+
+    /// [`intersect_stream`](Self::intersect_stream) on a given kernel.
+    pub(crate) fn intersect_stream_on(
+        &self,
+        kernel: Kernel,
+        rays: &[(DVec3, DVec3)],
+        t_min: f64,
+        t_max: &[f64],
+        hits: &mut [Option<MeshHit>],
+    ) {
+        assert!(t_max.len() == rays.len() && hits.len() == rays.len());
+        for ((rays, t_max), hits) in rays
+            .chunks(STREAM)
+            .zip(t_max.chunks(STREAM))
+            .zip(hits.chunks_mut(STREAM))
+        {
+            let ray = |k: usize| rays[k.min(rays.len() - 1)];
+            let mut tests: [ClosestTriangle; STREAM] = std::array::from_fn(|k| ClosestTriangle {
+                mesh: self,
+                ray: WatertightRay::new(ray(k).0, ray(k).1),
+                t_min,
+                best: None,
+            });
+            let node_rays = std::array::from_fn(|k| NodeRay::new(ray(k).0, ray(k).1));
+            let mut limits = [f64::NEG_INFINITY; STREAM];
+            limits[..t_max.len()].copy_from_slice(t_max);
+            self.bvh
+                .closest_stream_on(kernel, &node_rays, rays.len(), &mut limits, &mut tests);
+            for (hit, test) in hits.iter_mut().zip(&tests) {
+                *hit = test
+                    .best
+                    .map(|(triangle, h)| self.surface(triangle, h.barycentric, h.t));
+            }
+        }
+    }
+
     /// Whether any triangle is hit with t in (t_min, t_max).
     pub fn any_hit(&self, origin: DVec3, direction: DVec3, t_min: f64, t_max: f64) -> bool {
         self.any_hit_on(simd::kernel(), origin, direction, t_min, t_max)
@@ -482,7 +537,7 @@ struct ClosestTriangle<'a> {
     best: Option<(usize, TriangleHit)>,
 }
 
-impl ClosestTest for &mut ClosestTriangle<'_> {
+impl ClosestTest for ClosestTriangle<'_> {
     #[inline(always)]
     fn test(&mut self, position: usize, t_max: f64) -> Option<f64> {
         closer_triangle(
@@ -494,7 +549,35 @@ impl ClosestTest for &mut ClosestTriangle<'_> {
             t_max,
         )
     }
+
+    #[inline(always)]
+    fn prefetch(&self, position: usize, count: usize, what: Fetch) {
+        let triangles = &self.mesh.triangles[position..position + count];
+        match what {
+            // At most four triangles of 12 bytes: one or two lines.
+            Fetch::Items => {
+                simd::prefetch(&triangles[0]);
+                simd::prefetch(&triangles[count - 1]);
+            }
+            Fetch::Data => {
+                for &i in triangles.iter().flatten() {
+                    simd::prefetch(&self.mesh.positions[i as usize]);
+                }
+            }
+        }
+    }
 }
+
+impl ClosestTest for &mut ClosestTriangle<'_> {
+    #[inline(always)]
+    fn test(&mut self, position: usize, t_max: f64) -> Option<f64> {
+        (**self).test(position, t_max)
+    }
+}
+
+/// Rays traced in turns by [`Mesh::intersect_stream`]: on the 1M-triangle
+/// terrain eight hid more misses than four (2.6 against 2.1–2.2 Mrays/s).
+pub const STREAM: usize = 8;
 
 /// The fewest rays a triangle is tested against in eight lanes at once;
 /// fewer are tested one by one (eight lanes cost about three rays' tests).
@@ -868,6 +951,15 @@ pub(crate) mod tests {
         // triangles, where a ray's leaves overlap along it (a hit found in
         // one leaf must bound the next).
         let mut rng = crate::math::rng::PixelRng::new(29, 0, 0);
+        let soup = crossing_soup(&mut rng);
+        for data in [bumpy_grid(24, 7), soup] {
+            packets_answer_as_alone(&data, &mut rng);
+        }
+    }
+
+    /// 1,500 triangles of size 3 crossing one another over a 24 × 3 × 24
+    /// slab: a ray's leaves overlap along it.
+    fn crossing_soup(rng: &mut crate::math::rng::PixelRng) -> MeshData {
         let mut soup = MeshData::default();
         for i in 0..1_500u32 {
             let center = DVec3::new(
@@ -881,8 +973,48 @@ pub(crate) mod tests {
             }
             soup.triangles.push([3 * i, 3 * i + 1, 3 * i + 2]);
         }
+        soup
+    }
+
+    #[test]
+    fn streams_answer_each_ray_as_it_is_answered_alone() {
+        // Incoherent rays (random origins over and inside the meshes,
+        // aimed at vertices, edges and anywhere, some with limits that end
+        // early), traced in turns, a last group shorter than STREAM, on
+        // every SIMD path; over a bumpy grid and through a crossing soup.
+        let mut rng = crate::math::rng::PixelRng::new(31, 0, 0);
+        let soup = crossing_soup(&mut rng);
         for data in [bumpy_grid(24, 7), soup] {
-            packets_answer_as_alone(&data, &mut rng);
+            let mesh = Mesh::new(data.clone()).unwrap();
+            let (mut rays, mut t_max) = (Vec::new(), Vec::new());
+            for i in 0..2_003 {
+                let t = data.triangles[(rng.uniform() * data.triangles.len() as f64) as usize];
+                let [a, b, c] = t.map(|k| data.positions[k as usize]);
+                let target = match i % 4 {
+                    0 => a,
+                    1 => a + (b - a) * 0.5,
+                    2 => b + (c - b) * rng.uniform(),
+                    _ => DVec3::new(rng.uniform() * 24.0, rng.uniform(), rng.uniform() * 24.0),
+                };
+                let origin = DVec3::new(
+                    rng.uniform() * 40.0 - 8.0,
+                    rng.uniform() * 8.0 - 2.0,
+                    rng.uniform() * 40.0 - 8.0,
+                );
+                rays.push((origin, target - origin));
+                t_max.push(if i % 7 == 0 { 0.999 } else { f64::INFINITY });
+            }
+            let mut hits_seen = 0;
+            for kernel in kernels() {
+                let mut streamed = vec![None; rays.len()];
+                mesh.intersect_stream_on(kernel, &rays, 0.0, &t_max, &mut streamed);
+                for (k, &(o, d)) in rays.iter().enumerate() {
+                    let alone = mesh.intersect_on(kernel, o, d, 0.0, t_max[k]);
+                    assert!(same_hit(streamed[k], alone), "ray {k}, {kernel:?}");
+                    hits_seen += usize::from(alone.is_some());
+                }
+            }
+            assert!(hits_seen > 1_000, "{hits_seen}");
         }
     }
 

@@ -39,6 +39,14 @@ impl Avx2 {
     }
 }
 
+/// Asks the cache for the line holding `value` (a hint only).
+#[inline(always)]
+pub fn prefetch_line<T>(value: &T) {
+    // SAFETY: SSE, which has the prefetch, is part of every x86-64 CPU; a
+    // prefetch reads nothing the program sees and never faults.
+    unsafe { _mm_prefetch::<_MM_HINT_T0>((value as *const T).cast::<i8>()) }
+}
+
 /// `job.run()`, with AVX2 enabled for its code, which `Job::run` inlines.
 ///
 /// # Safety
@@ -329,6 +337,33 @@ pub fn any(
     }
     // SAFETY: `proof` exists only where `detect` found AVX2.
     unsafe { run(proof, nodes, ray, t_max, stack, test) }
+}
+
+/// `wide::closest_stream` compiled for AVX2.
+#[inline]
+pub fn closest_stream<T: ClosestTest, const K: usize>(
+    proof: Avx2,
+    nodes: &[WideNode],
+    rays: &[NodeRay; K],
+    count: usize,
+    t_max: &mut [f64; K],
+    stacks: &mut [impl Stack<StackEntry>; K],
+    tests: &mut [T; K],
+) {
+    #[target_feature(enable = "avx2")]
+    fn run<T: ClosestTest, const K: usize>(
+        proof: Avx2,
+        nodes: &[WideNode],
+        rays: &[NodeRay; K],
+        count: usize,
+        t_max: &mut [f64; K],
+        stacks: &mut [impl Stack<StackEntry>; K],
+        tests: &mut [T; K],
+    ) {
+        wide::closest_stream(proof, nodes, rays, count, t_max, stacks, tests)
+    }
+    // SAFETY: `proof` exists only where `detect` found AVX2.
+    unsafe { run(proof, nodes, rays, count, t_max, stacks, tests) }
 }
 
 /// `packet::closest` compiled for AVX2.

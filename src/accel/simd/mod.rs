@@ -144,6 +144,28 @@ impl Kernel {
         }
     }
 
+    /// Closest-hit traversal of up to K rays in turns (see
+    /// `wide::closest_stream`) on this kernel.
+    #[inline]
+    pub(crate) fn closest_stream<T: ClosestTest, const K: usize>(
+        self,
+        nodes: &[WideNode],
+        rays: &[NodeRay; K],
+        count: usize,
+        t_max: &mut [f64; K],
+        stacks: &mut [impl Stack<StackEntry>; K],
+        tests: &mut [T; K],
+    ) {
+        match self {
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2(k) => avx2::closest_stream(k, nodes, rays, count, t_max, stacks, tests),
+            Kernel::Sse2 => wide::closest_stream(Sse2, nodes, rays, count, t_max, stacks, tests),
+            Kernel::Scalar => {
+                wide::closest_stream(Scalar, nodes, rays, count, t_max, stacks, tests)
+            }
+        }
+    }
+
     /// Any-hit traversal (see `wide::any`) on this kernel.
     #[inline]
     pub(crate) fn any(
@@ -199,6 +221,16 @@ impl Kernel {
             Kernel::Scalar => packet::any(Scalar, nodes, rays, t_max, stack, test),
         }
     }
+}
+
+/// Asks the cache for the line holding `value`: a hint only, which cannot
+/// change a result (nothing where the CPU has no such instruction).
+#[inline(always)]
+pub(crate) fn prefetch<T>(value: &T) {
+    #[cfg(target_arch = "x86_64")]
+    avx2::prefetch_line(value);
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = value;
 }
 
 /// Work for [`Kernel::vectorize_job`]: a trait rather than a closure, so
