@@ -307,16 +307,20 @@ fn main() -> anyhow::Result<()> {
         mesh.intersect_stream(&pairs[range.clone()], 0.0, &incoherent.t_max[range], hits);
         hits.iter().flatten().count()
     };
-    let stream_1 = || stream_part(0..pairs.len(), &mut Vec::new());
+    // In parts of STREAM_PART rays with one buffer for their hits (one
+    // buffer for all the rays would be 100 MB to fault in).
+    let part = |c: usize| c * STREAM_PART..pairs.len().min((c + 1) * STREAM_PART);
+    let parts = pairs.len().div_ceil(STREAM_PART);
+    let stream_1 = || {
+        let mut hits = Vec::new();
+        (0..parts)
+            .map(|c| stream_part(part(c), &mut hits))
+            .sum::<usize>()
+    };
     let stream_n = || {
-        (0..pairs.len().div_ceil(STREAM_PART))
+        (0..parts)
             .into_par_iter()
-            .map_init(Vec::new, |hits, c| {
-                stream_part(
-                    c * STREAM_PART..pairs.len().min((c + 1) * STREAM_PART),
-                    hits,
-                )
-            })
+            .map_init(Vec::new, |hits, c| stream_part(part(c), hits))
             .sum::<usize>()
     };
     {
