@@ -245,7 +245,7 @@ pub trait ClosestTest {
 
     /// Asks the cache for what testing the `count` items from `position`
     /// will read: first (`Fetch::Items`) the items, then (`Fetch::Data`)
-    /// what they point to. A hint only; [`closest_stream`] gives other
+    /// what they point to. A hint only; `closest_stream` gives other
     /// rays a turn between the two and before the test.
     #[inline(always)]
     fn prefetch(&self, _position: usize, _count: usize, _what: Fetch) {}

@@ -48,7 +48,7 @@ pub fn sphere_roots(
 }
 
 /// The nearest root of the ray (origin, direction) in (0, t_max), if it
-/// has one: the answer of [`sphere_roots`] and [`nearest_root`], the same
+/// has one: the answer of [`sphere_roots`] and `nearest_root`, the same
 /// operations in the same order, but without a branch (every value is
 /// computed, the cases become masks and selects), so that a loop over many
 /// rays compiles to vector code. Coordinates come one by one, as a

@@ -101,9 +101,11 @@ pub fn triangle_hit(
 /// constants, so each coordinate is read directly. A run-time index into
 /// the coordinates goes through memory (a store and a load per
 /// coordinate); a traversal compiled for one permutation (see
-/// `Mesh::any_hit`) does without.
+/// `Mesh::any_hit`) does without. Crate-private: a ray of another
+/// permutation would get a wrong answer (checked in debug builds only);
+/// [`triangle_hit_dispatched`] is the public form.
 #[inline(always)]
-pub fn triangle_hit_as<const P: u8>(
+pub(crate) fn triangle_hit_as<const P: u8>(
     ray: &WatertightRay,
     a: DVec3,
     b: DVec3,
@@ -116,7 +118,7 @@ pub fn triangle_hit_as<const P: u8>(
 }
 
 /// [`triangle_hit`] by a branch per test to the form compiled for the
-/// ray's permutation (see [`triangle_hit_as`]). For the rays of a packet
+/// ray's permutation (see `triangle_hit_as`). For the rays of a packet
 /// tested one by one: they share one permutation as a rule, so the branch
 /// goes the same way test after test.
 #[inline(always)]

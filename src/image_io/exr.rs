@@ -189,7 +189,7 @@ pub struct Part {
     pub provenance: Provenance,
 }
 
-/// Reads an EXR written by [`write`] with a provenance. Messages say what
+/// Reads an EXR written by [`write()`] with a provenance. Messages say what
 /// is wrong without the path (the caller names the file). Before any pixel
 /// is allocated, the header's sizes are checked against the file's length
 /// (no more pixels than its compressed data can hold) and the memory is

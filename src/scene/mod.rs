@@ -1,4 +1,4 @@
-//! Scene loading: the TOML format ([`format`]), parsing section by section
+//! Scene loading: the TOML format ([`format`](mod@format)), parsing section by section
 //! ([`load`]), validation and construction of the runtime [`Scene`]
 //! ([`build`]), errors located by line and column ([`error`]).
 
