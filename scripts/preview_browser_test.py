@@ -8,6 +8,11 @@ chosen view follows an edit; a page refused by the 16-stream cap says why
 and connects once there is room. Network mode: without the token the page
 asks for it; with it, the page works, the token leaves the address bar and
 a reload works from the cookie.
+Exposure (issue 26, item 4): the page starts at the scene's exposure and
+follows it on a save while the slider is left there; the canvas, the PNG
+"Save PNG" downloads and `prism render --exposure EV` agree at the scene's
+exposure and at one set with the slider; a slider moved away stays when
+the scene's exposure changes, until its button brings the scene's back.
 Keeps screenshots in target/preview-screens/ (and the README's in
 docs/images/preview.png when asked). Run by scripts/test-preview-browser.sh.
 
@@ -48,10 +53,16 @@ def read_ppm(path):
     return w, h, data[m.end():m.end() + w * h * 3]
 
 
-def reference(name):
+def reference(name, *args):
     out = os.path.join(WORK, name + ".ppm")
-    subprocess.run([PRISM, "render", SCENE, "-q", "-o", out], check=True)
+    subprocess.run([PRISM, "render", SCENE, "-q", *args, "-o", out], check=True)
     return read_ppm(out)
+
+
+def reference_png(name, *args):
+    out = os.path.join(WORK, name + ".png")
+    subprocess.run([PRISM, "render", SCENE, "-q", *args, "-o", out], check=True)
+    return open(out, "rb").read()
 
 
 def explain_json(x, y):
@@ -281,6 +292,73 @@ try:
     wait("document.getElementById('errors').hidden", "the error to go")
     compare(canvas_rgb(), reference("fixed"), "after the fix")
     driver.save_screenshot(os.path.join(SCREENS, "5-fixed.png"))
+
+    # Exposure: what the page shows is what Save PNG writes, and what
+    # `prism render --exposure EV` writes.
+    def with_exposure(text, ev):
+        return text.replace("[render]\n", f"[render]\nexposure = {ev}\n", 1)
+
+    def page_exposure():
+        return driver.execute_script(
+            "return [window.prism.exposure, window.prism.exposureMoved, "
+            "document.getElementById('exposure').value, "
+            "document.getElementById('ev').textContent, "
+            "document.getElementById('exposure-scene').hidden];")
+
+    def saved_png():
+        href = driver.find_element(By.ID, "save-png").get_attribute("href")
+        return href, urllib.request.urlopen(href).read()
+
+    def agree(what, *args):
+        compare(canvas_rgb(), reference(what, *args), what)
+        href, png = saved_png()
+        command = " ".join(("prism render",) + args)
+        if png != reference_png(what, *args):
+            fail(f"{what}: Save PNG ({href}) is not {command}'s PNG")
+        print(f"ok: {what}: Save PNG ({href}) equals {command}'s PNG")
+
+    generation = driver.execute_script("return window.prism.generation;")
+    save(with_exposure(moved, 1.5))
+    generation = wait_done(generation)
+    ev, was_moved, slider, label, button_hidden = page_exposure()
+    if ev != 1.5 or was_moved or float(slider) != 1.5 or label != "1.5 EV" or not button_hidden:
+        fail(f"the page does not start at the scene's 1.5 EV: {page_exposure()}")
+    agree("the scene's 1.5 EV")
+    driver.save_screenshot(os.path.join(SCREENS, "5b-exposure-scene.png"))
+    # A page opened on that scene starts there too.
+    driver.refresh()
+    wait("window.prism && window.prism.phase === 'done' && window.prism.exposure === 1.5 && "
+         + DRAWN, "the reloaded page at the scene's exposure")
+    if page_exposure()[1:4] != [False, "1.5", "1.5 EV"]:
+        fail(f"the reloaded page does not start at the scene's 1.5 EV: {page_exposure()}")
+    agree("a new page at the scene's 1.5 EV")
+
+    set_exposure(-1)
+    agree("the slider's -1 EV", "--exposure", "-1")
+    if driver.find_element(By.ID, "exposure-scene").text != "scene's 1.5 EV":
+        fail("moved away, the slider offers no way back to the scene's exposure")
+
+    # The scene's exposure changes while the slider is moved: it stays.
+    save(with_exposure(moved, 0.5))
+    generation = wait_done(generation)
+    ev, was_moved, _, _, button_hidden = page_exposure()
+    if ev != -1 or not was_moved or button_hidden:
+        fail(f"the slider the user moved did not stay: {page_exposure()}")
+    if driver.find_element(By.ID, "exposure-scene").text != "scene's 0.5 EV":
+        fail("the button does not name the scene's new exposure")
+    agree("the slider's -1 EV kept over a save", "--exposure", "-1")
+    # Its button brings the scene's back, and the page follows it again.
+    driver.find_element(By.ID, "exposure-scene").click()
+    wait("window.prism.exposure === 0.5 && !window.prism.exposureMoved && " + DRAWN,
+         "the scene's exposure back")
+    agree("back to the scene's 0.5 EV")
+    save(moved)
+    generation = wait_done(generation)
+    if page_exposure()[:2] != [0, False]:
+        fail(f"the slider did not follow the scene's exposure to 0: {page_exposure()}")
+    agree("the scene's exposure followed to 0")
+    print("ok: exposure: the page starts at the scene's, follows it unless moved, "
+          "and saves what it shows")
 
     # A page beyond the 16-stream cap says why and retries.
     addr = re.match(r"http://([^/]+)/", url).group(1)

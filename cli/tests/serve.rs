@@ -7,6 +7,10 @@
 //! ones reused, idle and partial connections closed while a real request
 //! is answered, the picture as shared binary, cross-site requests refused,
 //! network mode behind a token, and a scene followed however it is saved.
+//! Issue 26: the saved PNG at the page's exposure and the scene's exposure
+//! in the status; network mode answering the machine's addresses and
+//! printing one; ::ffff:127.0.0.1 as loopback; control characters in the
+//! scene's path escaped on the terminal.
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
@@ -249,13 +253,20 @@ radius = 1
 "#;
 
 fn render_png(dir: &Path, scene: &str) -> Vec<u8> {
+    render_png_with(dir, scene, &[])
+}
+
+/// `prism render SCENE ARGS -o PNG`'s file.
+fn render_png_with(dir: &Path, scene: &str, args: &[&str]) -> Vec<u8> {
     let out = dir.join("reference.png");
     let o = Command::new(env!("CARGO_BIN_EXE_prism"))
-        .args(["render", scene, "-q", "-o"])
+        .args(["render", scene, "-q"])
+        .args(args)
+        .arg("-o")
         .arg(&out)
         .output()
         .unwrap();
-    assert!(o.status.success());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     std::fs::read(out).unwrap()
 }
 
@@ -721,4 +732,288 @@ fn a_client_that_stops_reading_is_dropped() {
     assert!(got.len() < 1600 * 900 * 12, "{}", got.len());
     // Others are served meanwhile and after.
     assert_eq!(get(addr, "/picture", addr).1.len(), 1600 * 900 * 12);
+}
+
+/// Issue 26, item 4: the page starts at the scene's exposure (given in the
+/// status, and followed on a save), and "Save PNG" writes the exposure the
+/// page asks for, as `prism render --exposure EV` does.
+#[test]
+fn the_saved_png_is_at_the_exposure_the_page_shows() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.toml");
+    let bright = SCENE.replace("[render]\n", "[render]\nexposure = 2\n");
+    save(&scene, &bright).unwrap();
+    let server = serve(&scene);
+    let addr = server.addr.as_str();
+    let path = scene.to_str().unwrap();
+    let mut events = Events::open(addr);
+    let (_, done) = events.until("done");
+    assert_eq!(done["exposure"].as_f64(), Some(2.0), "{done}");
+
+    // No exposure asked for: the scene's, as before.
+    let at_scene = render_png(dir.path(), path);
+    let (status, head, body) = request(addr, "/save.png", &format!("Host: {addr}\r\n"));
+    assert_eq!(status, 200);
+    assert!(
+        body == at_scene,
+        "the saved PNG is not the render's at 2 EV"
+    );
+    assert_eq!(header(&head, "x-prism-exposure"), Some("2"));
+    assert!(get(addr, "/save.png?ev=2", addr).1 == at_scene);
+    // The slider's: as `prism render --exposure EV`, byte for byte.
+    for ev in ["-1.5", "0", "0.3"] {
+        let want = render_png_with(dir.path(), path, &["--exposure", ev]);
+        assert_ne!(want, at_scene, "{ev}");
+        let (status, head, body) = request(
+            addr,
+            &format!("/save.png?ev={ev}"),
+            &format!("Host: {addr}\r\n"),
+        );
+        assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+        assert!(
+            body == want,
+            "the PNG saved at {ev} EV is not prism render's"
+        );
+        assert_eq!(
+            header(&head, "x-prism-exposure").map(|v| v.parse::<f64>().unwrap()),
+            Some(ev.parse().unwrap())
+        );
+    }
+    // More exposures than are kept: still right.
+    for ev in ["1", "1.1", "1.2", "1.3", "-1.5"] {
+        assert_eq!(
+            get(addr, &format!("/save.png?ev={ev}"), addr).0,
+            200,
+            "{ev}"
+        );
+    }
+    let want = render_png_with(dir.path(), path, &["--exposure", "-1.5"]);
+    assert!(get(addr, "/save.png?ev=-1.5", addr).1 == want);
+    for bad in ["abc", "65", "-1e9", "NaN", "inf"] {
+        assert_eq!(
+            get(addr, &format!("/save.png?ev={bad}"), addr).0,
+            400,
+            "{bad}"
+        );
+    }
+    // The EXR stays linear, whatever the exposure.
+    assert_eq!(get(addr, "/save.exr", addr).0, 200);
+
+    // The scene's exposure changes on a save: the status follows.
+    let dimmer = SCENE.replace("[render]\n", "[render]\nexposure = -0.5\n");
+    save(&scene, &dimmer).unwrap();
+    let (_, done) = events.until("done");
+    assert_eq!(done["exposure"].as_f64(), Some(-0.5), "{done}");
+    assert!(get(addr, "/save.png", addr).1 == render_png(dir.path(), path));
+}
+
+/// The addresses of this machine's interfaces other machines may reach
+/// (not loopback, not link-local), found apart from the server's own code.
+fn interface_addresses() -> Vec<std::net::IpAddr> {
+    use std::net::{IpAddr, Ipv4Addr, Ipv6Addr};
+    let mut out = Vec::new();
+    let mut list: *mut libc::ifaddrs = std::ptr::null_mut();
+    // SAFETY: the list getifaddrs makes is read, then freed once.
+    unsafe {
+        if libc::getifaddrs(&mut list) != 0 {
+            return out;
+        }
+        let mut at = list;
+        while !at.is_null() {
+            let sa = (*at).ifa_addr;
+            if !sa.is_null() {
+                match i32::from((*sa).sa_family) {
+                    libc::AF_INET => {
+                        let a = &*sa.cast::<libc::sockaddr_in>();
+                        out.push(IpAddr::V4(Ipv4Addr::from(u32::from_be(a.sin_addr.s_addr))));
+                    }
+                    libc::AF_INET6 => {
+                        let a = &*sa.cast::<libc::sockaddr_in6>();
+                        out.push(IpAddr::V6(Ipv6Addr::from(a.sin6_addr.s6_addr)));
+                    }
+                    _ => {}
+                }
+            }
+            at = (*at).ifa_next;
+        }
+        libc::freeifaddrs(list);
+    }
+    out.retain(|ip| {
+        !ip.is_loopback()
+            && match ip {
+                IpAddr::V4(v4) => !v4.is_link_local(),
+                IpAddr::V6(v6) => (v6.segments()[0] & 0xffc0) != 0xfe80,
+            }
+    });
+    out
+}
+
+/// `prism serve ARGS --port 0` with its output in files: the server once
+/// it has printed its first line, and the paths of stdout and stderr.
+fn serve_logged(args: &[&str], dir: &Path) -> (Server, std::path::PathBuf, std::path::PathBuf) {
+    let (out, err) = (dir.join("stdout.txt"), dir.join("stderr.txt"));
+    let child = Command::new(env!("CARGO_BIN_EXE_prism"))
+        .arg("serve")
+        .args(args)
+        .args(["--port", "0"])
+        .stdout(Stdio::from(std::fs::File::create(&out).unwrap()))
+        .stderr(Stdio::from(std::fs::File::create(&err).unwrap()))
+        .spawn()
+        .unwrap();
+    let end = Instant::now() + Duration::from_secs(60);
+    let line = loop {
+        let text = std::fs::read_to_string(&out).unwrap();
+        if let Some(line) = text.lines().next().filter(|_| text.contains('\n')) {
+            break line.to_string();
+        }
+        assert!(Instant::now() < end, "nothing printed");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let addr = line
+        .split("http://")
+        .nth(1)
+        .and_then(|r| r.split('/').next())
+        .unwrap_or_else(|| panic!("no URL in {line:?}"))
+        .to_string();
+    (Server { child, addr }, out, err)
+}
+
+/// Issue 26, item 5: bound to every interface, a client that typed one of
+/// the machine's addresses is answered (with the token), the URL printed
+/// for other machines has such an address, and foreign names and
+/// addresses are still refused.
+#[test]
+fn network_mode_answers_the_machines_own_addresses() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.toml");
+    save(&scene, SCENE).unwrap();
+    let (server, out, _) =
+        serve_logged(&[scene.to_str().unwrap(), "--bind", "0.0.0.0"], dir.path());
+    let addr = server.addr.as_str();
+    let port: u16 = addr.rsplit(':').next().unwrap().parse().unwrap();
+    // Answered once the URLs are all printed.
+    assert_eq!(get(addr, "/stats", addr).0, 403);
+    let printed = std::fs::read_to_string(&out).unwrap();
+    let token = printed
+        .lines()
+        .next()
+        .and_then(|l| l.trim().split("?token=").nth(1))
+        .unwrap()
+        .to_string();
+    let auth = format!("Authorization: token {token}\r\n");
+
+    // DNS rebinding protection stays: other names and addresses, 421.
+    for foreign in [
+        format!("evil.example:{port}"),
+        format!("203.0.113.7:{port}"),
+        "evil.example".into(),
+    ] {
+        assert_eq!(
+            request(addr, "/", &format!("Host: {foreign}\r\n{auth}")).0,
+            421,
+            "{foreign}"
+        );
+    }
+
+    let ours = interface_addresses();
+    if ours.is_empty() {
+        println!("note: this machine has no non-loopback interface address; its part is skipped");
+        return;
+    }
+    for ip in &ours {
+        let host = std::net::SocketAddr::new(*ip, port).to_string();
+        // Typed by a client, whichever way its request came in (here over
+        // loopback, as through a port forward).
+        assert_eq!(
+            request(addr, "/", &format!("Host: {host}\r\n{auth}")).0,
+            200,
+            "Host: {host}"
+        );
+        assert_eq!(
+            request(addr, "/", &format!("Host: {host}\r\n")).0,
+            403,
+            "Host: {host} without the token"
+        );
+        // And over that address itself (IPv4: bound to 0.0.0.0).
+        if ip.is_ipv4() {
+            assert_eq!(
+                request(&host, "/picture", &format!("Host: {host}\r\n{auth}")).0,
+                200,
+                "{host}"
+            );
+        }
+    }
+    // Printed for other machines: a URL with one of these addresses.
+    let others: Vec<&str> = printed
+        .lines()
+        .filter(|l| l.contains("from other machines"))
+        .collect();
+    let v4: Vec<String> = ours
+        .iter()
+        .filter(|ip| ip.is_ipv4())
+        .map(|ip| format!("http://{ip}:{port}/?token={token}"))
+        .collect();
+    if !v4.is_empty() {
+        assert!(
+            others
+                .iter()
+                .any(|l| v4.iter().any(|u| l.ends_with(u.as_str()))),
+            "{printed}"
+        );
+    }
+}
+
+/// Issue 26, item 5: ::ffff:127.0.0.1 is loopback: no network warning, no
+/// token, localhost answered.
+#[test]
+fn a_mapped_loopback_address_is_loopback() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.toml");
+    save(&scene, SCENE).unwrap();
+    let (server, out, err) = serve_logged(
+        &[scene.to_str().unwrap(), "--bind", "::ffff:127.0.0.1"],
+        dir.path(),
+    );
+    let addr = server.addr.as_str();
+    let port = addr.rsplit(':').next().unwrap();
+    assert_eq!(get(addr, "/stats", addr).0, 200);
+    for host in [format!("127.0.0.1:{port}"), format!("localhost:{port}")] {
+        assert_eq!(get(addr, "/", &host).0, 200, "{host}");
+    }
+    assert_eq!(get(addr, "/", "evil.example").0, 421);
+    let printed = std::fs::read_to_string(&out).unwrap();
+    let warned = std::fs::read_to_string(&err).unwrap();
+    assert!(!printed.contains("token"), "{printed}");
+    assert!(!warned.contains("network"), "{warned}");
+}
+
+/// Issue 26, item 2: a scene path with control characters is shown
+/// escaped, so it cannot drive the terminal.
+#[test]
+fn control_characters_in_the_scene_path_are_escaped() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("a\u{1b}]0;owned\u{7}\u{1b}[2J.toml");
+    save(&scene, SCENE).unwrap();
+    let (server, line) = serve_with(&[scene.to_str().unwrap()], None, Stdio::null());
+    assert!(
+        !line.contains('\u{1b}') && !line.contains('\u{7}'),
+        "{line:?}"
+    );
+    assert!(
+        line.contains("a\\u{1b}]0;owned\\u{7}\\u{1b}[2J.toml"),
+        "{line:?}"
+    );
+    drop(server);
+    let missing = dir.path().join("gone\r\u{1b}[31m.toml");
+    let o = Command::new(env!("CARGO_BIN_EXE_prism"))
+        .arg("serve")
+        .arg(&missing)
+        .output()
+        .unwrap();
+    let message = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{message}");
+    assert!(
+        message.contains("gone\\r\\u{1b}[31m.toml") && !message.contains('\u{1b}'),
+        "{message:?}"
+    );
 }

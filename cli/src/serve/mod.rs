@@ -14,6 +14,7 @@
 //! token, given in the printed URL and kept in a cookie, as Jupyter does.
 
 mod conn;
+mod interfaces;
 mod views;
 mod worker;
 
@@ -38,8 +39,11 @@ use serde::Deserialize;
 use tokio::sync::Semaphore;
 use tokio::sync::broadcast::error::RecvError;
 
+use prism::text::{Shown, escape_controls};
+
 use crate::args::{BAD_INPUT, LoadArgs};
 use conn::{Connections, LocalAddr};
+use interfaces::Interfaces;
 use views::{Kind, Refused, Views};
 use worker::Shared;
 
@@ -54,7 +58,8 @@ pub struct ServeArgs {
     #[arg(long, default_value_t = 8080)]
     port: u16,
     /// Address to listen on; anything but a loopback address (127.0.0.1,
-    /// ::1) exposes the preview to the network, behind a random token.
+    /// ::1, ::ffff:127.0.0.1) exposes the preview to the network, behind a
+    /// random token; 0.0.0.0 (or ::) listens on every interface.
     #[arg(long, default_value = "127.0.0.1")]
     bind: IpAddr,
     /// Also accept requests for this host name (repeatable; `*`: any),
@@ -73,6 +78,11 @@ struct Access {
     /// Host names (lower case, no port) answered, besides the address a
     /// request came in on.
     hosts: Vec<String>,
+    /// Addresses answered as IP literals, besides the one a request came
+    /// in on: the bound one and those given with --allow-host.
+    addresses: Vec<IpAddr>,
+    /// Bound to every interface: the addresses of all of them.
+    interfaces: Option<Interfaces>,
     any_host: bool,
     /// Network mode: the token, and the cookie that keeps it.
     token: Option<String>,
@@ -93,12 +103,12 @@ pub fn run(args: &ServeArgs) -> ExitCode {
     let options = match args.load.options() {
         Ok(o) => o,
         Err(e) => {
-            eprintln!("error: {e}");
+            eprintln!("error: {}", escape_controls(&e));
             return ExitCode::from(BAD_INPUT);
         }
     };
     if !args.scene.is_file() {
-        eprintln!("error: {}: no such scene file", args.scene.display());
+        eprintln!("error: {}: no such scene file", Shown(args.scene.display()));
         return ExitCode::from(BAD_INPUT);
     }
     let runtime = match tokio::runtime::Builder::new_multi_thread()
@@ -149,7 +159,9 @@ async fn serve(args: &ServeArgs, options: prism::scene::LoadOptions) -> ExitCode
             return ExitCode::FAILURE;
         }
     };
-    let network = !addr.ip().is_loopback();
+    // ::ffff:127.0.0.1 is loopback, as 127.0.0.1 is.
+    let ip = addr.ip().to_canonical();
+    let network = !ip.is_loopback();
     let mut hosts: Vec<String> = args
         .allow_host
         .iter()
@@ -161,9 +173,24 @@ async fn serve(args: &ServeArgs, options: prism::scene::LoadOptions) -> ExitCode
             }
         })
         .collect();
-    if addr.ip().is_loopback() || addr.ip().is_unspecified() {
+    if ip.is_loopback() || ip.is_unspecified() {
         hosts.push("localhost".into());
     }
+    let mut addresses: Vec<IpAddr> = hosts
+        .iter()
+        .filter_map(|h| h.parse::<IpAddr>().ok())
+        .map(|a| a.to_canonical())
+        .collect();
+    if !ip.is_unspecified() {
+        addresses.push(ip);
+    }
+    // Bound to every interface: a client may type any of their addresses.
+    let all = if ip.is_unspecified() {
+        interfaces::addresses()
+    } else {
+        Vec::new()
+    };
+    let reachable = interfaces::urls_for(ip, &all);
     let name = hostname();
     if network {
         hosts.extend(name.clone());
@@ -185,7 +212,7 @@ async fn serve(args: &ServeArgs, options: prism::scene::LoadOptions) -> ExitCode
         {
             Ok(t) => Some(t),
             Err(e) => {
-                eprintln!("error: {e}");
+                eprintln!("error: {}", escape_controls(&e));
                 return ExitCode::from(BAD_INPUT);
             }
         },
@@ -201,6 +228,8 @@ async fn serve(args: &ServeArgs, options: prism::scene::LoadOptions) -> ExitCode
         access: Arc::new(Access {
             any_host: hosts.iter().any(|h| h == "*"),
             hosts,
+            addresses,
+            interfaces: ip.is_unspecified().then(|| Interfaces::new(all)),
             token: token.clone(),
             cookie: format!("prism-token-{}", addr.port()),
         }),
@@ -222,7 +251,8 @@ async fn serve(args: &ServeArgs, options: prism::scene::LoadOptions) -> ExitCode
         .route("/stats", get(stats))
         .layer(middleware::from_fn_with_state(app.clone(), guard))
         .with_state(app);
-    let scene = args.scene.display();
+    // Control characters in the path must not drive the terminal.
+    let scene = Shown(args.scene.display());
     // Not println!: a closed stdout (a script that read the URL and went)
     // must not stop the server.
     let say = |line: String| {
@@ -234,7 +264,7 @@ async fn serve(args: &ServeArgs, options: prism::scene::LoadOptions) -> ExitCode
         None => say(format!("prism: previewing {scene} at http://{addr}/")),
         Some(token) => {
             // Unspecified: reachable on loopback too, printed first.
-            let local = if addr.ip().is_unspecified() {
+            let local = if ip.is_unspecified() {
                 SocketAddr::new(IpAddr::from([127, 0, 0, 1]), addr.port())
             } else {
                 addr
@@ -247,11 +277,23 @@ async fn serve(args: &ServeArgs, options: prism::scene::LoadOptions) -> ExitCode
             say(format!(
                 "prism: previewing {scene} at http://{local}/?token={token}"
             ));
-            if let Some(name) = name.filter(|_| addr.ip().is_unspecified()) {
-                say(format!(
-                    "prism: from other machines: http://{name}:{}/?token={token}",
-                    addr.port()
-                ));
+            // Other machines: by the interfaces' addresses (a laptop on
+            // the network seldom resolves this machine's name); by the
+            // name only when no address can be reached.
+            let port = addr.port();
+            if ip.is_unspecified() {
+                for a in &reachable {
+                    let a = SocketAddr::new(*a, port);
+                    say(format!(
+                        "prism: from other machines: http://{a}/?token={token}"
+                    ));
+                }
+                if let Some(name) = name.filter(|_| reachable.is_empty()) {
+                    say(format!(
+                        "prism: from other machines: http://{}:{port}/?token={token}",
+                        escape_controls(&name)
+                    ));
+                }
             }
         }
     }
@@ -337,12 +379,22 @@ async fn guard(State(app): State<App>, request: Request, next: Next) -> Response
     let name = host_name(host);
     // The address the request came in on, as an IP literal, is ours
     // whichever interface it is: a rebinding attack needs a name.
+    // So is an address of this machine's interfaces when bound to all of
+    // them (a client that typed the machine's address, port forwarding),
+    // and the bound address.
     let local = request.extensions().get::<LocalAddr>().map(|l| l.0.ip());
-    let literal = name.parse::<IpAddr>().ok();
+    let literal = name.parse::<IpAddr>().ok().map(|i| i.to_canonical());
     let ours = app.access.any_host
         || app.access.hosts.contains(&name)
-        || (literal.is_some()
-            && literal.map(|i| i.to_canonical()) == local.map(|i| i.to_canonical()));
+        || literal.is_some_and(|i| {
+            Some(i) == local.map(|l| l.to_canonical())
+                || app.access.addresses.contains(&i)
+                || app
+                    .access
+                    .interfaces
+                    .as_ref()
+                    .is_some_and(|f| f.contains(i))
+        });
     if !ours {
         return refuse(
             StatusCode::MISDIRECTED_REQUEST,
@@ -573,9 +625,39 @@ async fn save(app: &App, kind: Kind) -> Response {
     }
 }
 
-async fn save_png(State(app): State<App>) -> Response {
-    save(&app, Kind::Png).await
+#[derive(Deserialize)]
+struct SaveQuery {
+    /// Exposure in stops (the page's slider); absent: the scene's.
+    ev: Option<String>,
 }
+
+/// The PNG at the exposure asked for, as `prism render --exposure EV`
+/// writes it; the scene's exposure when none is given.
+async fn save_png(State(app): State<App>, Query(q): Query<SaveQuery>) -> Response {
+    let ev = match q.ev.as_deref().map(str::trim) {
+        None | Some("") => None,
+        Some(text) => match text.parse::<f64>() {
+            Ok(ev) if (-MAX_EV..=MAX_EV).contains(&ev) => Some(ev),
+            _ => {
+                return refuse(
+                    StatusCode::BAD_REQUEST,
+                    format!("ev: expected a number of stops between -{MAX_EV} and {MAX_EV}\n"),
+                );
+            }
+        },
+    };
+    let mut r = save(&app, Kind::png(ev)).await;
+    if r.status().is_success() {
+        let shown = ev.or_else(|| app.shared.last_scene().map(|(_, s, _)| s.exposure));
+        if let Some(ev) = shown {
+            numeric(&mut r, "x-prism-exposure", ev);
+        }
+    }
+    r
+}
+
+/// The exposure range `prism render --exposure` takes.
+const MAX_EV: f64 = 64.0;
 
 async fn save_exr(State(app): State<App>) -> Response {
     save(&app, Kind::Exr).await

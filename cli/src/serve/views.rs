@@ -26,12 +26,25 @@ pub const MAX_SNAPSHOTS: usize = 3;
 /// once, so that they do not hold connections (`conn::MAX_CONNECTIONS`).
 pub const MAX_WAITING: usize = 32;
 
+/// Saved PNGs kept per scene generation, each at its own exposure; beyond
+/// this, the finished ones at other exposures are forgotten.
+pub const MAX_PNG_EXPOSURES: usize = 4;
+
 /// What a job makes.
 #[derive(Clone, Copy, PartialEq, Eq, Hash, Debug)]
 pub enum Kind {
     View(&'static str),
-    Png,
+    /// The PNG at an exposure (the bits of its EV, -0 made 0; None: the
+    /// scene's).
+    Png(Option<u64>),
     Exr,
+}
+
+impl Kind {
+    /// The PNG at `ev` stops (None: the scene's exposure).
+    pub fn png(ev: Option<f64>) -> Kind {
+        Kind::Png(ev.map(|ev| (ev + 0.0).to_bits()))
+    }
 }
 
 /// A finished job: the file, and for heat-ramp views the value shown white.
@@ -216,6 +229,17 @@ impl Views {
                 return Ok(made);
             }
             slot = self.wait_slot().ok_or(Refused::Busy)?;
+            // PNGs at many exposures: the finished ones at other exposures
+            // go (those under way are bounded by the waiting requests).
+            if matches!(kind, Kind::Png(_))
+                && jobs
+                    .keys()
+                    .filter(|(_, k)| matches!(k, Kind::Png(_)))
+                    .count()
+                    >= MAX_PNG_EXPOSURES
+            {
+                jobs.retain(|(_, k), j| !matches!(k, Kind::Png(_)) || j.done.borrow().is_none());
+            }
             let job = jobs.entry((generation, kind)).or_insert_with(|| {
                 let job = Arc::new(Job {
                     waiters: AtomicUsize::new(0),
@@ -378,20 +402,23 @@ fn make(
                 top,
             })
         }
-        Kind::Png | Kind::Exr => {
+        Kind::Png(_) | Kind::Exr => {
             let film = {
                 let p = shared.picture.lock().unwrap_or_else(|p| p.into_inner());
                 // The film of this scene, not of the one before.
                 p.film.clone().filter(|_| p.generation == stop.generation)
             }
             .ok_or("the render is not finished yet")?;
-            // The scene's exposure applies to the 8-bit PNG only.
+            // The exposure asked for (as `prism render --exposure EV`)
+            // applies to the 8-bit PNG only, and is in its provenance.
             let mut film = film;
-            if kind == Kind::Png {
+            let mut settings = *settings;
+            if let Kind::Png(ev) = kind {
+                settings.exposure = ev.map_or(settings.exposure, f64::from_bits);
                 prism::image_io::expose(&mut film, settings.exposure);
             }
-            let provenance = prism::image_io::Provenance::of(scene, settings);
-            let ext = if kind == Kind::Png { "png" } else { "exr" };
+            let provenance = prism::image_io::Provenance::of(scene, &settings);
+            let ext = if kind == Kind::Exr { "exr" } else { "png" };
             let path = dir.path().join(format!("render.{ext}"));
             prism::image_io::write_film_unless(&film, &path, Some(&provenance), &stop.job.cancel)
                 .map_err(|e| e.to_string())?;

@@ -50,6 +50,10 @@ pub struct Status {
     pub height: u32,
     /// Samples per pixel of the final pass.
     pub spp: u32,
+    /// The exposure in stops of the last scene that loaded (`[render]
+    /// exposure`; None before one has): where the page's slider starts,
+    /// and follows while the user leaves it there.
+    pub exposure: Option<f64>,
     /// Pixels done in the current pass, and in all.
     pub done: u64,
     /// Pixels in the current pass.
@@ -318,7 +322,10 @@ pub fn run(shared: Arc<Shared>) {
                 let settings = scene.settings;
                 *lock(&shared.scene) = Some((Arc::clone(&scene), settings, generation));
                 shared.scene_generation.store(generation, Ordering::SeqCst);
-                shared.update(|s| s.errors.clear());
+                shared.update(|s| {
+                    s.errors.clear();
+                    s.exposure = Some(settings.exposure);
+                });
                 render_passes(&shared, &scene, &settings, generation, changed_at);
             }
         }

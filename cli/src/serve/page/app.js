@@ -1,11 +1,13 @@
 // Prism's preview page: draws the linear radiance the server streams (with
 // the exposure applied and the sRGB transfer function, as `prism render`
-// writes PNG), follows the render, shows errors and explains pixels.
+// writes PNG), follows the render, shows errors and explains pixels. The
+// exposure starts at the scene's and follows it while the slider is left
+// there; "Save PNG" writes what the page shows, at the slider's exposure.
 "use strict";
 
 const state = {
   generation: 0, width: 0, height: 0, radiance: null, phase: "connecting",
-  exposure: 0, status: null, explanation: null, dirty: false, coarseAt: null,
+  exposure: 0, sceneExposure: null, exposureMoved: false, status: null, explanation: null, dirty: false, coarseAt: null,
   view: "", viewGeneration: 0, viewTop: null, notice: "", loading: null,
 };
 window.prism = state; // for the browser test
@@ -119,6 +121,7 @@ function showStatus(s) {
   if (state.view && s.generation !== state.viewGeneration && s.phase !== "loading" && s.phase !== "error") {
     showView();
   }
+  if (s.exposure != null && s.exposure !== state.sceneExposure) sceneExposure(s.exposure);
   if (s.width && s.height) resize(s.width, s.height);
   const phase = $("phase");
   phase.textContent = s.phase;
@@ -173,12 +176,44 @@ function connect() {
   events.onopen = () => { retry = 1; notice(""); loadPicture(); };
 }
 
-// Exposure, zoom, the value under the cursor.
-$("exposure").oninput = (e) => {
-  state.exposure = parseFloat(e.target.value);
-  $("ev").textContent = `${state.exposure.toFixed(1)} EV`;
+// Exposure: the scene's, until the slider moves away from it; the saved
+// PNG is written at the exposure shown.
+function evText(ev) {
+  const tenths = Math.abs(ev * 10 - Math.round(ev * 10)) < 1e-9;
+  return `${tenths ? ev.toFixed(1) : String(+ev.toFixed(4))} EV`;
+}
+function setExposure(ev, moved) {
+  state.exposure = ev;
+  state.exposureMoved = moved;
+  const slider = $("exposure");
+  if (!moved) {
+    // The scene's value, even beyond the slider's range or between its steps.
+    slider.min = Math.min(-6, Math.floor(ev));
+    slider.max = Math.max(6, Math.ceil(ev));
+    slider.value = ev;
+  }
+  $("ev").textContent = evText(ev);
+  const save = $("save-png");
+  save.href = `/save.png?ev=${encodeURIComponent(ev)}`;
+  $("save-ev").textContent = `at ${evText(ev)}` +
+    (moved ? "" : " (the scene's)");
+  const back = $("exposure-scene");
+  back.hidden = !moved || state.sceneExposure === null;
+  if (state.sceneExposure !== null) back.textContent = `scene's ${evText(state.sceneExposure)}`;
   redraw();
+}
+// The scene file's exposure changed (or is first known): followed unless
+// the user chose another; then only the button back to it changes.
+function sceneExposure(ev) {
+  state.sceneExposure = ev;
+  if (!state.exposureMoved) setExposure(ev, false);
+  else setExposure(state.exposure, Math.abs(state.exposure - ev) > 1e-9);
+}
+$("exposure").oninput = (e) => {
+  const ev = parseFloat(e.target.value);
+  setExposure(ev, state.sceneExposure === null || Math.abs(ev - state.sceneExposure) > 1e-9);
 };
+$("exposure-scene").onclick = () => setExposure(state.sceneExposure, false);
 function applyZoom() {
   const z = parseInt($("zoom").value, 10);
   $("zoomv").textContent = `${z}×`;
