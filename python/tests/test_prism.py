@@ -194,7 +194,27 @@ def test_dict_scenes_and_their_errors():
             {"type": "sphere", "center": [0, 1, 0], "radius": 1.0, "material": "red"},
         ],
     }
-    text, _ = prism._to_toml(d)
+    text = """
+[render]
+width = 48
+height = 36
+spp = 1
+[camera]
+position = [0, 1, -5]
+look_at = [0, 1, 0]
+fov = 40
+[lights.key]
+type = "point"
+position = [2, 5, -3]
+intensity = 1.0
+[materials.red]
+color = [0.8, 0.1, 0.1]
+[[objects]]
+type = "sphere"
+center = [0, 1, 0]
+radius = 1.0
+material = "red"
+"""
     a = prism.Scene.from_dict(d).render(progress=False)
     b = prism.loads(text).render(progress=False)
     assert a.tobytes() == b.tobytes() and a.max() > 0

@@ -4,6 +4,7 @@
 
 pub mod animation;
 pub mod build;
+pub mod dict;
 pub mod error;
 pub mod format;
 pub mod load;

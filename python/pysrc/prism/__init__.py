@@ -10,12 +10,12 @@ Renders equal, bit for bit, the EXR that ``prism render`` writes with the
 same settings. Scenes are the TOML files of docs/scene-format.md, TOML
 text (:func:`loads`), or dicts with the same keys (:meth:`Scene.from_dict`).
 Problems in a scene raise :class:`SceneError` with its file, line and
-column; bad arguments raise ``ValueError``.
+column (a dict's: its key path); bad arguments, integers out of range
+included, raise ``ValueError`` naming the argument.
 """
 
 from __future__ import annotations
 
-import io
 import json
 import os
 import zlib
@@ -39,10 +39,21 @@ __all__ = [
     "write",
     "interact",
     "AOVS",
+    "LIMITS",
+    "escape_controls",
 ]
 
 #: The debug views ``Scene.render(aov=...)`` takes.
 AOVS: Tuple[str, ...] = tuple(_prism.AOVS)
+
+#: The bounds the command puts on its arguments (prism::limits), which
+#: ``render`` and ``explain`` apply too: ``MAX_THREADS``, ``MAX_SPP``,
+#: ``MAX_IMAGE_SIDE``, ``MAX_PIXELS``, ``MAX_DEPTH``, ``MAX_FRAMES``.
+LIMITS: Mapping[str, int] = dict(_prism.LIMITS)
+
+#: ``escape_controls(text)``: ``text`` with control characters written as
+#: escapes (``\n``, ``\u{1b}``), as Prism's messages show names from files.
+escape_controls: Callable[[str], str] = _prism.escape_controls
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -119,18 +130,24 @@ class Scene:
         cls,
         scene: Mapping[str, Any],
         base_dir: Optional[PathLike] = None,
-        allow_read: Iterable[PathLike] = (),
+        allow_read: Union[PathLike, Iterable[PathLike]] = (),
+        frame: int = 0,
     ) -> "Scene":
         """A scene from a dict with the keys of the scene file
-        (``{"camera": {...}, "objects": [{...}], ...}``). A problem raises
+        (``{"camera": {...}, "objects": [{...}], ...}``), built from the
+        values directly (no TOML text). A problem raises
         :class:`SceneError` whose ``key_path`` names the key
-        (``objects[1].radius``)."""
-        text, paths = _to_toml(scene)
-        try:
-            return loads(text, base_dir=base_dir, origin="<dict>", allow_read=allow_read)
-        except SceneError as e:
-            _locate_in_dict(e, paths)
-            raise
+        (``objects[1].radius``). Relative paths are read below
+        ``base_dir`` (the working folder by default). An animated scene
+        reads the dict again for each other frame it renders."""
+        return cls(
+            _prism.from_dict(
+                scene,
+                _folder_arg(base_dir),
+                _folders(allow_read),
+                frame,
+            )
+        )
 
     def render(
         self,
@@ -163,6 +180,8 @@ class Scene:
             progress = None
         elif progress is True:
             progress = _tqdm_progress("prism")
+        if crop is not None and not isinstance(crop, (str, bytes)):
+            crop = tuple(crop)
         pixels = self._inner.render(
             width=width,
             height=height,
@@ -171,16 +190,41 @@ class Scene:
             seed=seed,
             frame=frame,
             threads=threads,
-            crop=tuple(crop) if crop is not None else None,
+            crop=crop,
             aov=aov,
             progress=progress,
         )
         return pixels.view(Image)
 
-    def explain(self, x: int, y: int, sample: int = 0, **settings: Any) -> dict:
+    def explain(
+        self,
+        x: int,
+        y: int,
+        sample: int = 0,
+        width: Optional[int] = None,
+        height: Optional[int] = None,
+        spp: Optional[int] = None,
+        max_depth: Optional[int] = None,
+        seed: Optional[int] = None,
+        frame: int = 0,
+    ) -> dict:
         """The ray tree of one sample of pixel (x, y): the same tree as
-        ``prism explain --json``, as dicts and lists."""
-        return json.loads(self._inner.explain_json(x, y, sample=sample, **settings))
+        ``prism explain --json``, as dicts and lists. Settings left out are
+        the scene's own; its ``radiance`` is the rendered pixel when the
+        render has one sample per pixel (``spp=1``)."""
+        return json.loads(
+            self._inner.explain_json(
+                x,
+                y,
+                sample=sample,
+                width=width,
+                height=height,
+                spp=spp,
+                max_depth=max_depth,
+                seed=seed,
+                frame=frame,
+            )
+        )
 
     @property
     def settings(self) -> dict:
@@ -202,39 +246,52 @@ class Scene:
         return f"<prism.Scene {s['width']}x{s['height']} spp={s['spp']} frames={self.frames}>"
 
 
-def load(path: PathLike, allow_read: Iterable[PathLike] = (), frame: int = 0) -> Scene:
+def _folders(allow_read: Union[PathLike, Iterable[PathLike], None]) -> list:
+    """``allow_read`` as a list of paths: one path (a str or PathLike) is
+    one folder, not a sequence of one-letter folders."""
+    if allow_read is None:
+        return []
+    if isinstance(allow_read, (str, bytes, os.PathLike)):
+        allow_read = [allow_read]
+    return [os.fsdecode(p) for p in allow_read]
+
+
+def _folder_arg(base_dir: Optional[PathLike]) -> Optional[str]:
+    return os.fsdecode(base_dir) if base_dir is not None else None
+
+
+def load(
+    path: PathLike,
+    allow_read: Union[PathLike, Iterable[PathLike]] = (),
+    frame: int = 0,
+) -> Scene:
     """Load a scene file (TOML). It may read files below its own folder,
-    below each of ``allow_read`` and below PRISM_ALLOW_READ's folders: the
-    read policy of ``prism render``."""
-    return Scene(_prism.load(os.fspath(path), [os.fspath(p) for p in allow_read], frame))
+    below each of ``allow_read`` (a folder or a list of folders) and below
+    PRISM_ALLOW_READ's folders: the read policy of ``prism render``. A
+    folder of ``allow_read`` that does not exist is a ValueError."""
+    return Scene(_prism.load(os.fsdecode(path), _folders(allow_read), frame))
 
 
 def loads(
     text: str,
     base_dir: Optional[PathLike] = None,
     origin: str = "<string>",
-    allow_read: Iterable[PathLike] = (),
+    allow_read: Union[PathLike, Iterable[PathLike]] = (),
     frame: int = 0,
 ) -> Scene:
     """Load a scene from TOML text. Relative paths in it (models,
-    textures) are read below ``base_dir`` (the working folder by default);
-    ``origin`` names the text in error messages."""
-    return Scene(
-        _prism.loads(
-            text,
-            os.fspath(base_dir) if base_dir is not None else None,
-            origin,
-            [os.fspath(p) for p in allow_read],
-            frame,
-        )
-    )
+    textures) are read below ``base_dir`` (the working folder by default;
+    a path that is not a folder is a ValueError); ``origin`` names the
+    text in error messages."""
+    return Scene(_prism.loads(text, _folder_arg(base_dir), origin, _folders(allow_read), frame))
 
 
 def explain(scene: Scene, x: int, y: int, sample: int = 0, **settings: Any) -> dict:
     """The ray tree of one sample of pixel (x, y), as ``prism explain
-    --json`` gives it: ``radiance`` (the sample's RGB), ``tree`` (the camera
-    ray, its hit, the Whitted terms and the reflected and refracted
-    subtrees)."""
+    --json`` gives it: ``radiance`` (the sample's RGB; with ``spp=1`` the
+    rendered pixel), ``tree`` (the camera ray, its hit, the Whitted terms
+    and the reflected and refracted subtrees). ``settings``: ``width``,
+    ``height``, ``spp``, ``max_depth``, ``seed``, ``frame``."""
     return scene.explain(x, y, sample=sample, **settings)
 
 
@@ -249,7 +306,7 @@ def write(path: PathLike, array: Any) -> None:
     """Write linear radiance (H, W, 3) to ``path``: .png and .ppm as 8-bit
     sRGB (clamped), .exr and .hdr as linear float; atomically, with the
     encodings of ``prism render``."""
-    _prism.write(os.fspath(path), _as_rgb32(array))
+    _prism.write(os.fsdecode(path), _as_rgb32(array))
 
 
 def to_srgb8(array: Any) -> np.ndarray:
@@ -258,9 +315,10 @@ def to_srgb8(array: Any) -> np.ndarray:
 
 
 def read_exr(path: PathLike) -> Tuple[Image, Tuple[int, int, int, int]]:
-    """Read an EXR written by ``prism render`` (a frame or a part): its
-    pixels (float32) and its region (x0, x1, y0, y1) in the frame."""
-    pixels, region = _prism.read_exr(os.fspath(path))
+    """Read an EXR written by ``prism render`` (a frame or a part) or by
+    :func:`write`: its pixels (float32) and its region (x0, x1, y0, y1) in
+    the frame."""
+    pixels, region = _prism.read_exr(os.fsdecode(path))
     return pixels.view(Image), region
 
 
@@ -295,99 +353,3 @@ def _set_path(d: Any, path: Sequence[str], value: Any) -> None:
         d[int(last)] = value
     else:
         d[last] = value
-
-
-# --- dicts as TOML, remembering which line holds which key ------------------
-
-def _toml_key(k: str) -> str:
-    if k and all(c.isalnum() or c in "_-" for c in k):
-        return k
-    return json.dumps(k)
-
-
-def _toml_value(v: Any, where: str) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        f = float(v)
-        if f != f or f in (float("inf"), float("-inf")):
-            return {"nan": "nan", "inf": "inf", "-inf": "-inf"}[repr(f)]
-        return repr(f)
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, os.PathLike):
-        return json.dumps(os.fspath(v))
-    if isinstance(v, np.ndarray):
-        v = v.tolist()
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x, f"{where}[{i}]") for i, x in enumerate(v)) + "]"
-    if isinstance(v, Mapping):
-        items = ", ".join(f"{_toml_key(str(k))} = {_toml_value(x, f'{where}.{k}')}" for k, x in v.items())
-        return "{ " + items + " }"
-    raise ValueError(f"{where}: cannot put a {type(v).__name__} in a scene")
-
-
-def _is_table(v: Any) -> bool:
-    return isinstance(v, Mapping)
-
-
-def _is_table_array(v: Any) -> bool:
-    return isinstance(v, (list, tuple)) and len(v) > 0 and all(isinstance(x, Mapping) for x in v)
-
-
-def _to_toml(scene: Mapping[str, Any]) -> Tuple[str, list]:
-    """TOML text for ``scene`` and, per line, the key path it holds."""
-    if not isinstance(scene, Mapping):
-        raise ValueError("a scene dict is a mapping of section names to tables")
-    lines: list = []
-    paths: list = []
-
-    def emit(line: str, path: str) -> None:
-        lines.append(line)
-        paths.append(path)
-
-    def table(d: Mapping[str, Any], prefix: str, header: Optional[str], header_path: str) -> None:
-        if header is not None:
-            emit(header, header_path)
-        nested = []
-        for k, v in d.items():
-            key = str(k)
-            path = f"{prefix}.{key}" if prefix else key
-            if _is_table(v) or _is_table_array(v):
-                nested.append((key, v, path))
-            else:
-                emit(f"{_toml_key(key)} = {_toml_value(v, path)}", path)
-        for key, v, path in nested:
-            dotted = ".".join(_toml_key(p) for p in _split(path))
-            if _is_table(v):
-                table(v, path, f"[{dotted}]", path)
-            else:
-                for i, item in enumerate(v):
-                    table(item, f"{path}[{i}]", f"[[{dotted}]]", f"{path}[{i}]")
-
-    table(scene, "", None, "")
-    return "\n".join(lines) + "\n", paths
-
-
-def _split(path: str) -> list:
-    """`objects[1].material` → the TOML table names: objects, material."""
-    parts = []
-    for p in path.split("."):
-        parts.append(p.split("[")[0])
-    return parts
-
-
-def _locate_in_dict(e: SceneError, paths: list) -> None:
-    """Point the error at the dict's key path instead of the generated
-    text's line."""
-    line = getattr(e, "line", None)
-    if line is None or not (1 <= line <= len(paths)):
-        e.key_path = None
-        return
-    e.key_path = paths[line - 1] or None
-    if e.key_path:
-        e.message = f"{e.key_path}: {e.message}"
-        e.args = (f"<dict>: {e.key_path}: " + str(e.problems[0][2]),) + tuple(e.args[1:])
-        e.file = "<dict>"

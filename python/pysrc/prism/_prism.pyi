@@ -1,7 +1,7 @@
 """Type stubs of the extension module; the package `prism` wraps it."""
 
 from os import PathLike
-from typing import Callable, List, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -9,6 +9,7 @@ import numpy.typing as npt
 _Path = Union[str, PathLike[str]]
 
 AOVS: List[str]
+LIMITS: Dict[str, int]
 
 class SceneError(Exception):
     file: str
@@ -59,6 +60,13 @@ def loads(
     allow_read: Sequence[_Path] = ...,
     frame: int = 0,
 ) -> Scene: ...
+def from_dict(
+    scene: Mapping[str, Any],
+    base_dir: Optional[_Path] = None,
+    allow_read: Sequence[_Path] = ...,
+    frame: int = 0,
+) -> Scene: ...
+def escape_controls(text: str) -> str: ...
 def write(path: _Path, array: npt.NDArray[np.float32]) -> None: ...
 def to_srgb8(array: npt.NDArray[np.float32]) -> npt.NDArray[np.uint8]: ...
 def read_exr(path: _Path) -> Tuple[npt.NDArray[np.float32], Tuple[int, int, int, int]]: ...
