@@ -35,6 +35,7 @@ pub mod scene;
 pub mod settings;
 pub mod shading;
 pub mod stats;
+pub mod text;
 
 pub use render::{RenderObserver, RenderOutput, render};
 pub use scene::{Scene, SceneError};

@@ -13,6 +13,9 @@ pub const MAX_SPP: u32 = 65_536;
 pub const MAX_DEPTH: u32 = 256;
 /// Most frames of an animation (ten hours at 24 fps).
 pub const MAX_FRAMES: u32 = 1_000_000;
+/// Most worker threads a render may ask for (`--threads`, Python's
+/// `threads=`): more than any machine has cores, few enough to start at once.
+pub const MAX_THREADS: u32 = 1024;
 /// Most shadow feelers per sphere light and shading point.
 pub const MAX_LIGHT_SAMPLES: u32 = 65_536;
 
@@ -37,16 +40,25 @@ pub const DEFAULT_TEXTURE_MIB: u64 = 1024;
 /// about ten times its size. Large geometry belongs in a model file.
 pub const MAX_TABLE_TEXT: usize = 16 << 20;
 
+/// Most bytes of a scene file: text for ten million spheres. Read with
+/// this bound, so `/dev/zero` or a runaway file cannot fill memory.
+pub const MAX_SCENE_FILE_BYTES: u64 = 1 << 30;
+/// Most bytes of any one file a scene reads (a model, its buffers, an MTL
+/// file, a texture): a mesh of a hundred million triangles.
+pub const MAX_FILE_BYTES: u64 = 8 << 30;
+
 /// The limits as the help text and docs state them.
 pub fn describe() -> String {
     format!(
         "Limits: image sides 1..={MAX_IMAGE_SIDE} and at most {MAX_PIXELS} pixels; spp 1..={MAX_SPP}; \
-         max_depth 1..={MAX_DEPTH}; animation frames 1..={MAX_FRAMES}; sphere-light samples 1..={MAX_LIGHT_SAMPLES}; coordinates within \
+         max_depth 1..={MAX_DEPTH}; threads 1..={MAX_THREADS}; animation frames 1..={MAX_FRAMES}; sphere-light samples 1..={MAX_LIGHT_SAMPLES}; coordinates within \
          ±{MAX_COORDINATE:e} and lengths, radii and scale factors in [{MIN_LENGTH:e}, {MAX_COORDINATE:e}] \
          (after transforms); colours, intensities and coefficients at most {MAX_VALUE:e}; \
          {MAX_MODEL_PLACEMENTS} placements per model file; {} MiB of scene text per [[objects]] \
-         table and outside them; {DEFAULT_TEXTURE_MIB} MiB of textures unless --texture-memory \
+         table and outside them; {} MiB per scene file and {} MiB per file it reads; {DEFAULT_TEXTURE_MIB} MiB of textures unless --texture-memory \
          says otherwise.",
-        MAX_TABLE_TEXT >> 20
+        MAX_TABLE_TEXT >> 20,
+        MAX_SCENE_FILE_BYTES >> 20,
+        MAX_FILE_BYTES >> 20,
     )
 }

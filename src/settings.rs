@@ -36,18 +36,44 @@ pub struct RenderSettings {
 /// The image size for a camera made for images `aspect` wide per unit of
 /// height, given the sides the user set: both kept as they are; one set,
 /// the other derived (rounded, at least 1); none, the default width and
-/// the height it implies.
-pub fn image_shape(aspect: f64, width: Option<u32>, height: Option<u32>) -> (u32, u32) {
-    let side = |v: f64| (v.round().clamp(1.0, f64::from(limits::MAX_IMAGE_SIDE))) as u32;
-    match (width, height) {
-        (Some(w), Some(h)) => (w, h),
-        (Some(w), None) => (w, side(f64::from(w) / aspect)),
-        (None, Some(h)) => (side(f64::from(h) * aspect), h),
+/// the height it implies. A derived side past the limits (an aspect ratio
+/// of 1e-30 in a file) is an error that says to set the sides.
+pub fn image_shape(
+    aspect: f64,
+    width: Option<u32>,
+    height: Option<u32>,
+) -> Result<(u32, u32), String> {
+    let derived = |v: f64| -> Result<u32, String> {
+        let v = v.round().max(1.0);
+        if v <= f64::from(limits::MAX_IMAGE_SIDE) {
+            Ok(v as u32)
+        } else {
+            Err(format!(
+                "the camera's aspect ratio {aspect:e} (width over height) makes a side of {v:e} \
+                 pixels, more than {}; set both --width and --height (or [render] width and \
+                 height)",
+                limits::MAX_IMAGE_SIDE
+            ))
+        }
+    };
+    let (w, h) = match (width, height) {
+        (Some(w), Some(h)) => return Ok((w, h)),
+        (Some(w), None) => (w, derived(f64::from(w) / aspect)?),
+        (None, Some(h)) => (derived(f64::from(h) * aspect)?, h),
         (None, None) => {
             let w = RenderSettings::default().width;
-            (w, side(f64::from(w) / aspect))
+            (w, derived(f64::from(w) / aspect)?)
         }
+    };
+    let pixels = u64::from(w) * u64::from(h);
+    if pixels > limits::MAX_PIXELS {
+        return Err(format!(
+            "the camera's aspect ratio {aspect:e} makes a {w}x{h} image, {pixels} pixels, more \
+             than {}; set both --width and --height (or [render] width and height)",
+            limits::MAX_PIXELS
+        ));
     }
+    Ok((w, h))
 }
 
 /// 2^`ev`: the factor an exposure of `ev` stops puts on radiance.
@@ -140,12 +166,21 @@ mod tests {
     fn a_camera_aspect_shapes_the_sides_not_given() {
         // Blender's 1920×1080: 16:9.
         let a = 16.0 / 9.0;
-        assert_eq!(image_shape(a, None, None), (640, 360));
-        assert_eq!(image_shape(a, Some(1280), None), (1280, 720));
-        assert_eq!(image_shape(a, None, Some(1080)), (1920, 1080));
-        assert_eq!(image_shape(a, Some(100), Some(100)), (100, 100));
+        assert_eq!(image_shape(a, None, None), Ok((640, 360)));
+        assert_eq!(image_shape(a, Some(1280), None), Ok((1280, 720)));
+        assert_eq!(image_shape(a, None, Some(1080)), Ok((1920, 1080)));
+        assert_eq!(image_shape(a, Some(100), Some(100)), Ok((100, 100)));
         // A needle-thin aspect still gives a side of at least one pixel.
-        assert_eq!(image_shape(1e9, Some(10), None), (10, 1));
+        assert_eq!(image_shape(1e9, Some(10), None), Ok((10, 1)));
+        // A side past the limit is derived from the file, never clamped
+        // into a silently huge image: an error naming the options.
+        let e = image_shape(1e-30, None, None).unwrap_err();
+        assert!(e.contains("--width") && e.contains("--height"), "{e}");
+        assert!(image_shape(1e-30, Some(1), None).is_err());
+        assert!(image_shape(1e30, None, Some(2)).is_err());
+        // Sides within the limit but too many pixels together.
+        assert!(image_shape(1.0, Some(32_768), None).is_err());
+        assert_eq!(image_shape(1e-30, Some(1), Some(1)), Ok((1, 1)));
     }
 
     #[test]

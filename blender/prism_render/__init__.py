@@ -21,6 +21,7 @@ import threading
 import bpy
 
 from . import runner, scene_file, tiles
+from .text import escape_controls, report_lines
 
 ENGINE = "PRISM"
 
@@ -124,7 +125,7 @@ class PrismRenderEngine(bpy.types.RenderEngine):
         except ValueError as e:
             return self._fail(str(e))
         for note in notes:
-            self.report({"WARNING"}, f"Prism: {note}")
+            self.report({"WARNING"}, f"Prism: {escape_controls(note)}")
         try:
             with open(toml, "w", encoding="utf-8") as f:
                 f.write(text)
@@ -150,7 +151,7 @@ class PrismRenderEngine(bpy.types.RenderEngine):
                                 on_poll=lambda: watcher.poll(self))
         shutil.rmtree(tile_dir, ignore_errors=True)
         for w in outcome.warnings:
-            self.report({"WARNING"}, f"Prism: {w}")
+            self.report({"WARNING"}, f"Prism: {escape_controls(w)}")
         if outcome.cancelled:
             return
         if outcome.errors:
@@ -166,9 +167,11 @@ class PrismRenderEngine(bpy.types.RenderEngine):
         self.update_progress(1.0)
 
     def _fail(self, message):
-        for line in message.splitlines() or [message]:
+        # Names from the scene and paths reach these lines: escaped.
+        lines = report_lines(message)
+        for line in lines:
             self.report({"ERROR"}, f"Prism: {line}")
-        self.error_set(f"Prism: {message.splitlines()[0] if message else 'failed'}")
+        self.error_set(f"Prism: {lines[0] if message else 'failed'}")
 
 
 class Cancelled(Exception):

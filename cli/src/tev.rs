@@ -89,7 +89,7 @@ impl Tev {
         if let Err(e) = stream.write_all(&bytes)
             && !self.failed.swap(true, Ordering::Relaxed)
         {
-            eprintln!("warning: tev stopped listening ({e}); the render goes on without it");
+            say_err!("warning: tev stopped listening ({e}); the render goes on without it");
         }
     }
 }

@@ -36,8 +36,11 @@ pub struct Provenance {
     /// SHA-256 over the scene text and every file it read
     /// (`Inventory::content_hash`).
     pub scene_hash: String,
+    /// The model camera chosen by name (`--camera`), control characters
+    /// escaped; empty for the scene's own choice.
+    pub camera: String,
     /// The settings that change pixels, in canonical form
-    /// (`RenderSettings::pixel_key`).
+    /// (`RenderSettings::pixel_key`, with ` aov=NAME` for a debug view).
     pub settings: String,
     /// Seed of the random streams.
     pub seed: u64,
@@ -46,35 +49,85 @@ pub struct Provenance {
 }
 
 impl Provenance {
-    /// What `settings` make of `scene`: its content hash, the pixel
-    /// settings, seed and frame.
+    /// What `settings` make of `scene`: its content hash, the camera
+    /// chosen by name, the pixel settings, seed and frame.
     pub fn of(scene: &crate::Scene, settings: &crate::RenderSettings) -> Provenance {
         Provenance {
             scene_hash: scene.inventory.content_hash.clone(),
+            camera: scene
+                .inventory
+                .camera
+                .as_deref()
+                .map_or(String::new(), |c| crate::text::escape_controls(c).into_owned()),
             settings: settings.pixel_key(),
             seed: settings.seed,
             frame: settings.frame,
         }
     }
 
-    /// The fields as (name, value), in the order they are stored and
-    /// compared.
-    pub fn fields(&self) -> [(&'static str, String); 4] {
+    /// The fields as (name, value), in the order they are stored.
+    pub fn fields(&self) -> [(&'static str, String); 5] {
         [
             ("scene_sha256", self.scene_hash.clone()),
+            ("camera", self.camera.clone()),
             ("settings", self.settings.clone()),
             ("seed", self.seed.to_string()),
             ("frame", self.frame.to_string()),
         ]
     }
 
-    /// The first field in which `other` differs, as (name, ours, theirs).
-    pub fn difference(&self, other: &Provenance) -> Option<(&'static str, String, String)> {
-        self.fields()
-            .into_iter()
-            .zip(other.fields())
-            .find(|(a, b)| a.1 != b.1)
-            .map(|(a, b)| (a.0, a.1, b.1))
+    /// Every option that changes a pixel as (name, value), the settings
+    /// line taken apart (`size`, `spp`, `max_depth`, `min_weight`,
+    /// `exposure`, `aov`): what merge and resume compare, and what their
+    /// refusals name. An option a key does not carry has its default.
+    pub fn options(&self) -> Vec<(String, String)> {
+        let mut options = vec![
+            ("scene".to_string(), self.scene_hash.clone()),
+            (
+                "camera".to_string(),
+                if self.camera.is_empty() {
+                    "the scene's".to_string()
+                } else {
+                    self.camera.clone()
+                },
+            ),
+        ];
+        let mut words = self.settings.split(' ').filter(|w| !w.is_empty());
+        if let Some(size) = words.next() {
+            options.push(("size".into(), size.to_string()));
+        }
+        let mut rest: Vec<(String, String)> = words
+            .map(|w| match w.split_once('=') {
+                Some((k, v)) => (k.to_string(), v.to_string()),
+                None => (w.to_string(), String::new()),
+            })
+            .collect();
+        // Options older keys (and keys of the defaults) leave out.
+        for (name, default) in [("exposure", "0"), ("aov", "none (the picture)")] {
+            if !rest.iter().any(|(k, _)| k == name) {
+                rest.push((name.to_string(), default.to_string()));
+            }
+        }
+        options.extend(rest);
+        options.push(("seed".into(), self.seed.to_string()));
+        options.push(("frame".into(), self.frame.to_string()));
+        options
+    }
+
+    /// The first option in which `other` differs, as (name, ours, theirs).
+    pub fn difference(&self, other: &Provenance) -> Option<(String, String, String)> {
+        let theirs = other.options();
+        let ours = self.options();
+        let value = |list: &[(String, String)], name: &str| {
+            list.iter()
+                .find(|(k, _)| k == name)
+                .map_or_else(|| "none".to_string(), |(_, v)| v.clone())
+        };
+        ours.iter()
+            .map(|(k, _)| k)
+            .chain(theirs.iter().map(|(k, _)| k))
+            .find(|k| value(&ours, k) != value(&theirs, k))
+            .map(|k| (k.clone(), value(&ours, k), value(&theirs, k)))
     }
 
     /// The fields and `region`, one `name=value` line each: the EXR
@@ -87,6 +140,30 @@ impl Provenance {
             .collect();
         text.push_str(&format!("region={region}\n"));
         text
+    }
+
+    /// Why the render keyed `theirs` (a [`to_text`](Self::to_text)) is not
+    /// the render keyed `ours`, naming the option: `its spp is `8`, this
+    /// render's `4``; `None` when they are the same render.
+    pub fn key_difference(ours: &str, theirs: &str) -> Option<String> {
+        if ours == theirs {
+            return None;
+        }
+        if let (Ok((a, ra)), Ok((b, rb))) = (Self::from_text(ours), Self::from_text(theirs)) {
+            if let Some((name, ours, theirs)) = a.difference(&b) {
+                return Some(format!("its {name} is `{theirs}`, this render's `{ours}`"));
+            }
+            if ra != rb {
+                return Some(format!("its region is `{rb}`, this render's `{ra}`"));
+            }
+        }
+        // Not a key of this version: the first line that differs.
+        let (a, b) = ours
+            .lines()
+            .zip(theirs.lines().chain(std::iter::repeat("")))
+            .find(|(a, b)| a != b)
+            .unwrap_or(("", ""));
+        Some(format!("it has `{b}`, this render `{a}`"))
     }
 
     fn from_text(text: &str) -> Result<(Provenance, Region), String> {
@@ -111,6 +188,8 @@ impl Provenance {
         Ok((
             Provenance {
                 scene_hash: get("scene_sha256")?.to_string(),
+                // Parts written before cameras were recorded: the scene's.
+                camera: get("camera").unwrap_or_default().to_string(),
                 settings: get("settings")?.to_string(),
                 seed: number("seed")?,
                 frame: u32::try_from(number("frame")?)

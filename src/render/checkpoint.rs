@@ -21,6 +21,8 @@ const MAGIC: &[u8; 8] = b"PRISMTL1";
 const MAX_TILE_BYTES: u64 = 8 + 16 + (super::TILE as u64 * super::TILE as u64) * 24 + 32;
 /// The manifest's file name.
 const MANIFEST: &str = "checkpoint.txt";
+/// The most a manifest (a render's key, a few short lines) holds.
+const MAX_MANIFEST_BYTES: u64 = 1 << 16;
 
 /// A checkpoint folder opened for one render.
 pub struct Checkpoint {
@@ -45,16 +47,21 @@ impl Checkpoint {
             )
         })?;
         let manifest = dir.join(MANIFEST);
-        match std::fs::read_to_string(&manifest) {
+        // A manifest is a key of a few lines: read as a regular file, and
+        // no more of it than a key can be.
+        let read = crate::scene::resources::read_regular(
+            &manifest,
+            crate::scene::resources::Extent::Whole(MAX_MANIFEST_BYTES),
+        )
+        .and_then(|b| {
+            String::from_utf8(b).map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e))
+        });
+        match read {
             Ok(old) if old == key => {}
             Ok(old) => {
-                let differs = key
-                    .lines()
-                    .zip(old.lines().chain(std::iter::repeat("")))
-                    .find(|(a, b)| a != b)
-                    .map_or(String::new(), |(a, b)| {
-                        format!(" (it has `{b}`, this render `{a}`)")
-                    });
+                // Named by the option that differs (its camera, spp, …).
+                let differs = crate::image_io::Provenance::key_difference(key, &old)
+                    .map_or(String::new(), |d| format!(" ({d})"));
                 return Err(format!(
                     "{}: holds the checkpoint of another render{differs}; \
                      use another folder or delete this one",

@@ -77,6 +77,7 @@ pub fn check(
         model_camera_names: Vec::new(),
         default_material: None,
         model_failed: false,
+        camera_request_failed: false,
         warnings: Vec::new(),
         frame: f64::from(options.frame),
         interpolation: Interpolation::Linear,
@@ -157,6 +158,9 @@ pub fn check(
     let chosen = match &c.camera_request {
         Some(name) => {
             if c.requested_camera.is_none() && !c.model_failed {
+                // Said once: the scene's own lack of a camera is then no
+                // separate fault (the request is what failed).
+                c.camera_request_failed = true;
                 let known = if c.model_camera_names.is_empty() {
                     "no model file brings a camera".to_string()
                 } else {
@@ -188,7 +192,10 @@ pub fn check(
                 file.render.width.as_ref().map(|w| *w.get_ref()),
                 file.render.height.as_ref().map(|h| *h.get_ref()),
             );
-            (settings.width, settings.height) = crate::settings::image_shape(aspect, w, h);
+            match crate::settings::image_shape(aspect, w, h) {
+                Ok(shape) => (settings.width, settings.height) = shape,
+                Err(e) => c.diags.error(0..0, format!("camera `{}`: {e}", chosen.name)),
+            }
             if w.is_some() && h.is_some() {
                 let given = f64::from(settings.width) / f64::from(settings.height);
                 if (given / aspect - 1.0).abs() > 0.01 {
@@ -211,6 +218,7 @@ pub fn check(
         && file.camera.is_none()
         && !file.unparsed.contains("camera")
         && !c.model_failed
+        && !c.camera_request_failed
     {
         c.diags.error(
             0..0,
@@ -242,9 +250,16 @@ pub fn check(
                 texture_bytes: c.resources.texture_bytes(),
                 files_read: c.resources.policy.files_read(),
                 content_hash: String::new(),
+                camera: c.camera_request.clone(),
             },
             materials: c.materials,
-            warnings: c.warnings,
+            // Warnings quote names from files: escaped once, here, for
+            // every front end that shows them.
+            warnings: c
+                .warnings
+                .iter()
+                .map(|w| crate::text::escape_controls(w).into_owned())
+                .collect(),
             lights,
             background,
             ambient,
@@ -305,6 +320,8 @@ struct Check<'d, 's> {
     default_material: Option<u32>,
     /// A model file could not be loaded (already reported).
     model_failed: bool,
+    /// `--camera NAME` named no model camera (already reported).
+    camera_request_failed: bool,
     warnings: Vec<String>,
     /// The frame keyed values are taken at.
     frame: f64,
@@ -1082,6 +1099,9 @@ impl Check<'_, '_> {
             match Mesh::new(data) {
                 Ok(m) => meshes.push(Arc::new(m)),
                 Err(e) => {
+                    // The model failed as surely as when it could not be
+                    // read: it may have brought the camera.
+                    self.model_failed = true;
                     self.error(file.span(), format!("{label}: {}: {e}", path.display()));
                     return None;
                 }

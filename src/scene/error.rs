@@ -21,7 +21,7 @@ pub struct Diagnostic {
 #[derive(Debug, Error)]
 pub enum SceneError {
     /// The file could not be read.
-    #[error("{}: cannot read the scene: {source}", path.display())]
+    #[error("{}: cannot read the scene: {source}", crate::text::Shown(path.display()))]
     Read {
         /// The scene path.
         path: PathBuf,
@@ -52,7 +52,10 @@ impl fmt::Display for DiagnosticList<'_> {
             write!(
                 f,
                 "{}:{}:{}: error: {}",
-                self.origin, d.line, d.column, d.message
+                crate::text::Shown(self.origin),
+                d.line,
+                d.column,
+                crate::text::Shown(&d.message)
             )?;
         }
         Ok(())
@@ -137,7 +140,11 @@ impl<'a> Diagnostics<'a> {
                 Diagnostic {
                     line,
                     column,
-                    message,
+                    // Messages quote names and values from files and
+                    // arguments: shown with their control characters
+                    // escaped, so a name cannot drive the terminal or
+                    // forge a line.
+                    message: crate::text::escape_controls(&message).into_owned(),
                 }
             })
             .collect()

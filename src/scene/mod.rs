@@ -89,6 +89,10 @@ pub struct Inventory {
     /// SHA-256 (hex) over the scene text and every file it read, in read
     /// order: equal hashes mean equal input, wherever the files lie.
     pub content_hash: String,
+    /// The model camera chosen by name when loading (`--camera NAME`,
+    /// `LoadOptions::camera`): not in the scene's text, yet it changes
+    /// every pixel, so a part or checkpoint records it.
+    pub camera: Option<String>,
 }
 
 /// Counts of what a scene holds, for `prism check` and the summary line.
@@ -204,7 +208,11 @@ impl Scene {
                 }],
             });
         }
-        let bytes = std::fs::read(path).map_err(|source| SceneError::Read {
+        let bytes = resources::read_regular(
+            path,
+            resources::Extent::Whole(crate::limits::MAX_SCENE_FILE_BYTES),
+        )
+        .map_err(|source| SceneError::Read {
             path: path.to_path_buf(),
             source,
         })?;

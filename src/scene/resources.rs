@@ -131,15 +131,28 @@ impl ReadPolicy {
         }
     }
 
-    /// The whole of the regular file at `path`, if the scene may read it.
+    /// The whole of the regular file at `path`, if the scene may read it
+    /// and it holds at most [`limits::MAX_FILE_BYTES`].
     pub fn read(&self, path: &Path) -> Result<Vec<u8>, String> {
-        let resolved = self.check(path)?;
-        let cannot = |e: std::io::Error| format!("cannot read: {e}");
-        let meta = std::fs::metadata(&resolved).map_err(cannot)?;
-        if !meta.is_file() {
-            return Err("not a regular file; expected a file to read".into());
+        self.read_as(path, Extent::Whole(limits::MAX_FILE_BYTES))
+    }
+
+    /// The first `len` bytes of the regular file at `path` (a glTF buffer
+    /// of a declared `byteLength`): only they are read and hashed; a
+    /// shorter file is refused.
+    pub fn read_prefix(&self, path: &Path, len: u64) -> Result<Vec<u8>, String> {
+        if len > limits::MAX_FILE_BYTES {
+            return Err(format!(
+                "{len} bytes are declared, more than {}, the most Prism reads of one file",
+                limits::MAX_FILE_BYTES
+            ));
         }
-        let bytes = std::fs::read(&resolved).map_err(cannot)?;
+        self.read_as(path, Extent::Prefix(len))
+    }
+
+    fn read_as(&self, path: &Path, extent: Extent) -> Result<Vec<u8>, String> {
+        let resolved = self.check(path)?;
+        let bytes = read_regular(&resolved, extent).map_err(|e| e.to_string())?;
         let digest = Sha256::digest(&bytes).into();
         self.reads
             .lock()
@@ -154,6 +167,69 @@ impl ReadPolicy {
     /// The files read so far and the SHA-256 of each, in read order.
     pub fn files_read(&self) -> Vec<FileRead> {
         self.reads.lock().unwrap_or_else(|p| p.into_inner()).clone()
+    }
+}
+
+/// How much of a file to read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Extent {
+    /// All of it, refused when longer than this many bytes.
+    Whole(u64),
+    /// Exactly this many bytes from its start, refused when shorter.
+    Prefix(u64),
+}
+
+/// Reads the regular file at `path` as `extent` says, never more than the
+/// extent's bytes plus one. Anything but a regular file (a device such as
+/// `/dev/zero`, a FIFO, a socket, a folder) is refused before it is
+/// opened: opening a FIFO with no writer would wait for ever, and reading a
+/// device would never end. The file is opened non-blocking and checked
+/// again, so one swapped in between the two looks is refused too.
+pub fn read_regular(path: &Path, extent: Extent) -> std::io::Result<Vec<u8>> {
+    use std::io::{Error, ErrorKind, Read};
+    let not_regular = || {
+        Error::new(
+            ErrorKind::InvalidInput,
+            "not a regular file (a device, FIFO, socket or folder); expected a file to read",
+        )
+    };
+    let too_large = |limit: u64| {
+        Error::new(
+            ErrorKind::InvalidData,
+            format!("the file is larger than {limit} bytes, the most Prism reads of such a file"),
+        )
+    };
+    if !std::fs::metadata(path)?.is_file() {
+        return Err(not_regular());
+    }
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    #[cfg(unix)]
+    std::os::unix::fs::OpenOptionsExt::custom_flags(&mut options, libc::O_NONBLOCK);
+    let file = options.open(path)?;
+    let meta = file.metadata()?;
+    if !meta.is_file() {
+        return Err(not_regular());
+    }
+    if let Extent::Whole(limit) = extent
+        && meta.len() > limit
+    {
+        // Said before reading; the bound below holds for a file that grows.
+        return Err(too_large(limit));
+    }
+    let (cap, want) = match extent {
+        Extent::Whole(limit) => (limit, limit.saturating_add(1)),
+        Extent::Prefix(len) => (len, len),
+    };
+    let mut bytes = Vec::with_capacity(meta.len().min(cap) as usize);
+    file.take(want).read_to_end(&mut bytes)?;
+    match extent {
+        Extent::Whole(limit) if bytes.len() as u64 > limit => Err(too_large(limit)),
+        Extent::Prefix(len) if (bytes.len() as u64) < len => Err(Error::new(
+            ErrorKind::UnexpectedEof,
+            format!("{len} bytes are declared, but the file holds only {}", bytes.len()),
+        )),
+        _ => Ok(bytes),
     }
 }
 

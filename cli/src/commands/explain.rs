@@ -50,7 +50,7 @@ pub fn explain_command(args: &ExplainArgs) -> ExitCode {
     let mut options = match args.load.options() {
         Ok(o) => o,
         Err(e) => {
-            eprintln!("error: {e}");
+            say_err!("error: {e}");
             return ExitCode::from(BAD_INPUT);
         }
     };
@@ -62,15 +62,21 @@ pub fn explain_command(args: &ExplainArgs) -> ExitCode {
         },
         None => Scene::demo(),
     };
-    let settings = prism::RenderSettings {
-        frame: args.frame,
-        ..args.overrides.apply(&scene.settings)
+    let settings = match args.overrides.apply(&scene.settings) {
+        Ok(s) => prism::RenderSettings {
+            frame: args.frame,
+            ..s
+        },
+        Err(e) => {
+            say_err!("error: {e}");
+            return ExitCode::from(BAD_INPUT);
+        }
     };
     let (x, y) = args.pixel;
     let explanation = match explain(&scene, &settings, x, y, args.sample) {
         Ok(e) => e,
         Err(e) => {
-            eprintln!("error: {e}");
+            say_err!("error: {e}");
             return ExitCode::from(BAD_INPUT);
         }
     };
@@ -111,7 +117,8 @@ fn node(n: &RayNode, indent: usize, out: &mut String) {
     let pad = "  ".repeat(indent);
     let line = |out: &mut String, s: String| {
         out.push_str(&pad);
-        out.push_str(&s);
+        // Names from the scene and its models: no raw control characters.
+        out.push_str(&prism::text::escape_controls(&s));
         out.push('\n');
     };
     line(

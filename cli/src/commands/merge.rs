@@ -23,7 +23,7 @@ pub fn merge_command(args: &MergeArgs) -> ExitCode {
     match merge_parts(&args.parts, &args.output) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e}");
+            say_err!("error: {e}");
             ExitCode::from(BAD_INPUT)
         }
     }

@@ -80,6 +80,7 @@ pub fn run() -> ExitCode {
 }
 
 fn report_scene_error(e: &SceneError) -> ExitCode {
+    // Several lines, each escaped by the library (SceneError's Display).
     eprintln!("{e}");
     ExitCode::from(BAD_INPUT)
 }
@@ -88,7 +89,7 @@ fn check(path: &Path, load: &LoadArgs) -> ExitCode {
     let options = match load.options() {
         Ok(o) => o,
         Err(e) => {
-            eprintln!("error: {e}");
+            say_err!("error: {e}");
             return ExitCode::from(BAD_INPUT);
         }
     };
@@ -97,7 +98,7 @@ fn check(path: &Path, load: &LoadArgs) -> ExitCode {
         Ok(scene) => {
             let total = start.elapsed();
             for w in &scene.warnings {
-                eprintln!("warning: {w}");
+                say_err!("warning: {w}");
             }
             let c = scene.census();
             let inv = &scene.inventory;
@@ -110,7 +111,7 @@ fn check(path: &Path, load: &LoadArgs) -> ExitCode {
                  textures: {} ({:.1} MiB)\n\
                  estimated memory: {:.1} MiB\n\
                  load {:.2} s, build {:.2} s",
-                path.display(),
+                prism::text::Shown(path.display()),
                 scene.aggregate.primitives().len(),
                 scene.lights.len(),
                 scene.materials.len(),

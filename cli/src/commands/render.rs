@@ -34,7 +34,7 @@ pub struct RenderArgs {
     #[command(flatten)]
     overrides: SettingsArgs,
     /// Worker threads (default: all cores).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=i64::from(limits::MAX_THREADS)))]
     threads: Option<u32>,
     /// Render only pixels X0 <= x < X1, Y0 <= y < Y1 (EXR: a data window in
     /// the whole frame; other formats: the region alone).
@@ -106,19 +106,20 @@ fn parse_exposure(s: &str) -> Result<f64, String> {
 }
 
 impl SettingsArgs {
-    /// The scene's settings with these overrides.
-    pub fn apply(&self, scene: &RenderSettings) -> RenderSettings {
+    /// The scene's settings with these overrides; an error when a side
+    /// derived from a model camera's shape is past the limits.
+    pub fn apply(&self, scene: &RenderSettings) -> Result<RenderSettings, String> {
         // A model camera's shape: one side given here derives the other.
         let (width, height) = match (scene.aspect, self.width, self.height) {
             (Some(aspect), Some(_), None) | (Some(aspect), None, Some(_)) => {
-                prism::settings::image_shape(aspect, self.width, self.height)
+                prism::settings::image_shape(aspect, self.width, self.height)?
             }
             _ => (
                 self.width.unwrap_or(scene.width),
                 self.height.unwrap_or(scene.height),
             ),
         };
-        RenderSettings {
+        Ok(RenderSettings {
             exposure: self.exposure.unwrap_or(scene.exposure),
             width,
             height,
@@ -126,7 +127,7 @@ impl SettingsArgs {
             max_depth: self.max_depth.unwrap_or(scene.max_depth),
             seed: self.seed.unwrap_or(scene.seed),
             ..*scene
-        }
+        })
     }
 }
 
@@ -199,7 +200,7 @@ impl RenderObserver for CliObserver<'_> {
             let percent = pixels_done * 100 / self.total.max(1);
             let step = percent / 5 * 5;
             if self.logged_percent.fetch_max(step + 1, Ordering::Relaxed) < step + 1 {
-                eprintln!(
+                say_err!(
                     "prism: progress {what} pixels={pixels_done}/{} percent={step}",
                     self.total
                 );
@@ -223,7 +224,7 @@ impl RenderObserver for CliObserver<'_> {
 
 pub fn render_command(args: &RenderArgs) -> ExitCode {
     let bad = |message: String| {
-        eprintln!("error: {message}");
+        say_err!("error: {message}");
         ExitCode::from(BAD_INPUT)
     };
     let frames = match (args.frame, args.frames) {
@@ -281,12 +282,15 @@ pub fn render_command(args: &RenderArgs) -> ExitCode {
     }
     if !args.quiet {
         for w in &scene.warnings {
-            eprintln!("warning: {w}");
+            say_err!("warning: {w}");
         }
     }
-    let settings = RenderSettings {
-        threads: args.threads.map(|t| t as usize),
-        ..args.overrides.apply(&scene.settings)
+    let settings = match args.overrides.apply(&scene.settings) {
+        Ok(s) => RenderSettings {
+            threads: args.threads.map(|t| t as usize),
+            ..s
+        },
+        Err(e) => return bad(e),
     };
     if let Err(e) = settings.check() {
         return bad(e);
@@ -393,7 +397,7 @@ impl Job<'_> {
             && r.done()
         {
             if !args.quiet {
-                eprintln!(
+                say_err!(
                     "prism: frame {} is already written ({}); skipped",
                     settings.frame,
                     self.output.display()
@@ -412,7 +416,7 @@ impl Job<'_> {
                 match Checkpoint::open(&dir, &provenance.to_text(region)) {
                     Ok(c) => Some(c),
                     Err(e) => {
-                        eprintln!("error: {e}");
+                        say_err!("error: {e}");
                         return ExitCode::from(BAD_INPUT);
                     }
                 }
@@ -438,7 +442,7 @@ impl Job<'_> {
             bar
         };
         if !args.quiet && !terminal {
-            eprintln!(
+            say_err!(
                 "prism: rendering {}x{} {what}, {} spp, {} threads",
                 settings.width, settings.height, settings.spp, threads
             );
@@ -447,7 +451,7 @@ impl Job<'_> {
             .as_ref()
             .filter(|c| c.resumed() > 0 && !args.quiet)
         {
-            eprintln!(
+            say_err!(
                 "prism: resuming from the checkpoint: {} tiles already done",
                 c.resumed()
             );
@@ -497,7 +501,7 @@ impl Job<'_> {
                     .ok()
                     .and_then(|e| e.clone())
                 {
-                    eprintln!("error: cannot save a tile: {e}");
+                    say_err!("error: cannot save a tile: {e}");
                     return ExitCode::FAILURE;
                 }
                 let kept = if observer.checkpoint.is_some() {
@@ -505,12 +509,12 @@ impl Job<'_> {
                 } else {
                     ""
                 };
-                eprintln!("prism: interrupted; nothing was written{kept}");
+                say_err!("prism: interrupted; nothing was written{kept}");
                 return ExitCode::from(INTERRUPTED);
             }
             Err(e) => {
                 observer.bar.abandon();
-                eprintln!("error: {e}");
+                say_err!("error: {e}");
                 return ExitCode::FAILURE;
             }
         };
@@ -527,27 +531,27 @@ impl Job<'_> {
         match written {
             Ok(()) => {}
             Err(ImageWriteError::Interrupted { .. }) => {
-                eprintln!("prism: interrupted; nothing was written");
+                say_err!("prism: interrupted; nothing was written");
                 return ExitCode::from(INTERRUPTED);
             }
             Err(e) => {
-                eprintln!("error: {e}");
+                say_err!("error: {e}");
                 return ExitCode::FAILURE;
             }
         }
         if let Some(c) = observer.checkpoint
             && let Err(e) = c.remove()
         {
-            eprintln!("warning: the checkpoint could not be removed: {e}");
+            say_err!("warning: the checkpoint could not be removed: {e}");
         }
         if let Some(r) = &record
             && let Err(e) = r.save()
         {
-            eprintln!("warning: {e}");
+            say_err!("warning: {e}");
         }
         if !args.quiet {
             let s = output.stats;
-            eprintln!(
+            say_err!(
                 "prism: {}x{} {} spp, {} threads, {} boxes; load {:.2} s, build {:.2} s, render {:.2} s, write {:.2} s; rays: {} camera, {} reflection, {} refraction, {} shadow; {:.2} Mrays/s -> {}",
                 settings.width,
                 settings.height,
@@ -652,7 +656,7 @@ fn remove_frame_records(dir: &Path) {
     if let Err(e) = std::fs::remove_dir(dir)
         && e.kind() != std::io::ErrorKind::NotFound
     {
-        eprintln!(
+        say_err!(
             "warning: the checkpoint folder {} is not removed: {e}",
             dir.display()
         );

@@ -32,7 +32,7 @@ pub fn run(outdir: &Path, only: Option<u32>) -> Result<(), Failure> {
         match merge_frame(&plan, outdir, frame) {
             Ok(out) => say!("prism farm: merged frame {frame} -> {}", out.display()),
             Err(why) => {
-                eprintln!("prism farm: frame {frame} not merged: {why}");
+                say_err!("prism farm: frame {frame} not merged: {why}");
                 failed.push(frame);
             }
         }

@@ -13,7 +13,13 @@
 macro_rules! say {
     ($($arg:tt)*) => {{
         use std::io::Write as _;
-        let _ = writeln!(std::io::stdout().lock(), $($arg)*);
+        // One line; its pieces (paths, reasons read from the folder)
+        // shown with control characters escaped.
+        let _ = writeln!(
+            std::io::stdout().lock(),
+            "{}",
+            prism::text::escape_controls(&format!($($arg)*))
+        );
     }};
 }
 
@@ -303,11 +309,11 @@ pub fn run(command: FarmCommand) -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(Failure::BadInput(e)) => {
-            eprintln!("error: {e}");
+            say_err!("error: {e}");
             ExitCode::from(BAD_INPUT)
         }
         Err(Failure::Failed(e)) => {
-            eprintln!("error: {e}");
+            say_err!("error: {e}");
             ExitCode::FAILURE
         }
     }

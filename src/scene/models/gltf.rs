@@ -320,7 +320,10 @@ fn load_buffers(
                 .ok_or(format!("{at}: has no uri and the file has no BIN chunk"))?
                 .to_vec(),
             None => return Err(format!("{at}: has no uri")),
-            Some(uri) => read_uri(uri, dir, res).map_err(|e| format!("{at}.uri: {e}"))?,
+            // Only the declared bytes are read (and hashed): a buffer of
+            // 376 bytes naming a 3 GB file costs 376 bytes.
+            Some(uri) => read_uri(uri, dir, res, Some(b.byte_length.0))
+                .map_err(|e| format!("{at}.uri: {e}"))?,
         };
         let declared = b.byte_length.0;
         if (data.len() as u64) < declared {
@@ -337,7 +340,13 @@ fn load_buffers(
 /// The bytes a glTF URI names: a `data:` URI (base64) or a relative path
 /// (percent-encoded); `file://` paths too, which the read policy then
 /// judges like any other path. Other schemes are refused.
-fn read_uri(uri: &str, dir: &Path, res: &Resources) -> Result<Vec<u8>, String> {
+/// With `declared`, a file's first `declared` bytes only.
+fn read_uri(
+    uri: &str,
+    dir: &Path,
+    res: &Resources,
+    declared: Option<u64>,
+) -> Result<Vec<u8>, String> {
     if let Some(rest) = uri.strip_prefix("data:") {
         let (_, payload) = rest
             .split_once(";base64,")
@@ -356,9 +365,11 @@ fn read_uri(uri: &str, dir: &Path, res: &Resources) -> Result<Vec<u8>, String> {
     };
     let decoded = urlencoding::decode(path).map_err(|e| format!("bad URI: {e}"))?;
     let file = dir.join(decoded.as_ref());
-    res.policy
-        .read(&file)
-        .map_err(|e| format!("{}: {e}", file.display()))
+    match declared {
+        Some(len) => res.policy.read_prefix(&file, len),
+        None => res.policy.read(&file),
+    }
+    .map_err(|e| format!("{}: {e}", file.display()))
 }
 
 /// `list[i]`, or an error at JSON path `at` naming what is missing.
@@ -838,9 +849,13 @@ impl<'a> Reader<'a> {
                             normals.count
                         ));
                     }
-                    data.normals.extend((0..count).map(|i| {
-                        DVec3::new(normals.get(i, 0), normals.get(i, 1), normals.get(i, 2))
-                    }));
+                    for i in 0..count {
+                        let n = DVec3::new(normals.get(i, 0), normals.get(i, 1), normals.get(i, 2));
+                        if !n.is_finite() {
+                            return Err(format!("{at}.attributes.NORMAL: normal {i} is not finite"));
+                        }
+                        data.normals.push(n);
+                    }
                 }
                 _ => data.normals.clear(),
             }
@@ -855,8 +870,15 @@ impl<'a> Reader<'a> {
                         ));
                     }
                     // glTF's v runs down the image; Prism's runs up.
-                    data.uvs
-                        .extend((0..count).map(|i| DVec2::new(uvs.get(i, 0), 1.0 - uvs.get(i, 1))));
+                    for i in 0..count {
+                        let uv = DVec2::new(uvs.get(i, 0), 1.0 - uvs.get(i, 1));
+                        if !uv.is_finite() {
+                            return Err(format!(
+                                "{at}.attributes.TEXCOORD_0: coordinate {i} is not finite"
+                            ));
+                        }
+                        data.uvs.push(uv);
+                    }
                 }
                 _ => data.uvs.clear(),
             }
@@ -872,11 +894,25 @@ impl<'a> Reader<'a> {
                             colors.count
                         ));
                     }
-                    // Linear RGB; alpha (VEC4) is not used.
-                    data.colors.extend((0..count).map(|i| {
-                        DVec3::new(colors.get(i, 0), colors.get(i, 1), colors.get(i, 2))
-                            .clamp(DVec3::ZERO, DVec3::splat(MAX_VALUE))
-                    }));
+                    // Linear RGB in [0, 1] (a reflectance, as baseColorFactor);
+                    // alpha (VEC4) is not used. Non-finite is refused, as a
+                    // position would be; above 1 is clamped, said once.
+                    let mut clamped = false;
+                    for i in 0..count {
+                        let c = DVec3::new(colors.get(i, 0), colors.get(i, 1), colors.get(i, 2));
+                        if !c.is_finite() {
+                            return Err(format!("{at}: colour {i} is not finite"));
+                        }
+                        let kept = c.clamp(DVec3::ZERO, DVec3::ONE);
+                        clamped |= kept != c;
+                        data.colors.push(kept);
+                    }
+                    if clamped {
+                        // One line per file (warn drops repeats).
+                        self.warn(
+                            "vertex colours (COLOR_0) outside [0, 1] are clamped to it".into(),
+                        );
+                    }
                 }
                 _ => data.colors.clear(),
             }
@@ -1180,7 +1216,7 @@ impl<'a> Reader<'a> {
             }
             (Some(uri), _) => {
                 let dir = self.file.parent().unwrap_or(Path::new("."));
-                let bytes = read_uri(uri, dir, res).map_err(failed)?;
+                let bytes = read_uri(uri, dir, res, None).map_err(failed)?;
                 res.texture_bytes_of(TextureKey::Embedded(model, i), &bytes)
                     .map_err(failed)
             }
@@ -1312,6 +1348,15 @@ impl<'a> Reader<'a> {
                     return Err(format!(
                         "{at}.spot: innerConeAngle {inner} and outerConeAngle {outer} rad; \
                          expected 0 ≤ inner ≤ outer ≤ π/2"
+                    ));
+                }
+                if inner == outer {
+                    // The specification asks for inner < outer; the edge
+                    // is then a hard cut, which is what is drawn.
+                    self.warn(format!(
+                        "{at}.spot: innerConeAngle equals outerConeAngle ({inner} rad), which \
+                         the glTF specification does not allow (inner < outer); the pool has a \
+                         hard edge"
                     ));
                 }
                 LightShape::Spot {
