@@ -85,6 +85,14 @@ impl RenderSettings {
     /// Checks the settings against [`limits`]; the message says what is wrong.
     pub fn check(&self) -> Result<(), String> {
         use limits::*;
+        if let Some(aspect) = self.aspect
+            && (self.width == 0 || self.height == 0)
+        {
+            // A side a model camera's shape could not give (see
+            // `image_shape`): its error, which says to set the sides.
+            let side = |s: u32| (s != 0).then_some(s);
+            image_shape(aspect, side(self.width), side(self.height))?;
+        }
         let pixels = u64::from(self.width) * u64::from(self.height);
         if self.width == 0
             || self.height == 0

@@ -192,10 +192,12 @@ pub fn check(
                 file.render.width.as_ref().map(|w| *w.get_ref()),
                 file.render.height.as_ref().map(|h| *h.get_ref()),
             );
-            match crate::settings::image_shape(aspect, w, h) {
-                Ok(shape) => (settings.width, settings.height) = shape,
-                Err(e) => c.diags.error(0..0, format!("camera `{}`: {e}", chosen.name)),
-            }
+            (settings.width, settings.height) = match crate::settings::image_shape(aspect, w, h) {
+                Ok(shape) => shape,
+                // Not an error yet: the command line may set both sides.
+                // A side left at 0 makes `RenderSettings::check` say why.
+                Err(_) => (w.unwrap_or(0), h.unwrap_or(0)),
+            };
             if w.is_some() && h.is_some() {
                 let given = f64::from(settings.width) / f64::from(settings.height);
                 if (given / aspect - 1.0).abs() > 0.01 {

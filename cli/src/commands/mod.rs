@@ -64,9 +64,14 @@ enum Command {
 pub fn run() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
-        Err(e) => {
+        Err(e) if !e.use_stderr() => {
+            // --help, --version: the command's own text.
             let _ = e.print();
-            return ExitCode::from(if e.use_stderr() { BAD_INPUT } else { 0 });
+            return ExitCode::SUCCESS;
+        }
+        Err(e) => {
+            eprint!("{}", escaped_usage_error(&e));
+            return ExitCode::from(BAD_INPUT);
         }
     };
     match cli.command {
@@ -77,6 +82,25 @@ pub fn run() -> ExitCode {
         Command::Serve(args) => crate::serve::run(&args),
         Command::Farm(command) => crate::farm::run(command),
     }
+}
+
+/// clap's message for bad arguments (several lines: the error, usage, a
+/// tip), with every argument it quotes shown escaped: the arguments are
+/// escaped and parsed again for the message, so a value cannot drive the
+/// terminal or forge a line. Any control character left is escaped too,
+/// the message's own line breaks kept.
+fn escaped_usage_error(e: &clap::Error) -> String {
+    let escaped: Vec<String> = std::env::args_os()
+        .map(|a| prism::text::escape_controls(&a.to_string_lossy()).into_owned())
+        .collect();
+    let text = match Cli::try_parse_from(&escaped) {
+        Err(again) if again.kind() == e.kind() => again.render().to_string(),
+        _ => e.render().to_string(),
+    };
+    text.split('\n')
+        .map(|line| prism::text::escape_controls(line).into_owned())
+        .collect::<Vec<_>>()
+        .join("\n")
 }
 
 fn report_scene_error(e: &SceneError) -> ExitCode {
