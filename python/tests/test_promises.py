@@ -4,7 +4,6 @@ a careful user means them, messages in Python's names and without raw
 control characters, files that read back, dict scenes built directly."""
 
 import os
-import time
 from pathlib import Path
 
 import numpy as np
@@ -35,11 +34,10 @@ def small(**changes):
 def test_threads_are_bounded_by_the_commands_limit():
     scene = prism.Scene.from_dict(SMALL)
     assert prism.LIMITS["MAX_THREADS"] == 1024
-    start = time.perf_counter()
+    # Refused before any thread starts (it started them at 50 a second).
     for threads in [1025, 10**6, 10**30]:
         with pytest.raises(ValueError, match=r"threads must be between 1 and 1024"):
             scene.render(threads=threads, progress=False)
-    assert time.perf_counter() - start < 5
     assert scene.render(threads=prism.LIMITS["MAX_THREADS"], progress=False).shape == (18, 24, 3)
     with pytest.raises(ValueError, match="spp"):
         scene.render(spp=prism.LIMITS["MAX_SPP"] + 1, progress=False)
@@ -194,8 +192,10 @@ def test_from_dict_builds_without_toml_text_and_names_key_paths():
     assert a.tobytes() == prism.Scene.from_dict(SMALL).render(progress=False).tobytes()
 
 
-def test_from_dict_is_about_as_fast_as_loads():
-    n = 20_000
+def test_from_dict_builds_the_scene_loads_builds():
+    # The same spheres as a dict and as TOML text: the same picture. (How
+    # fast each is, bench/load_spheres_python.py measures; no timing here.)
+    n = 2_000
     d = small()
     d["objects"] = [{"type": "sphere", "material": "red", "center": [i * 0.01, 1.0, (i % 7) * 0.1],
                      "radius": 0.01} for i in range(n)]
@@ -208,19 +208,6 @@ def test_from_dict_is_about_as_fast_as_loads():
         '[materials.red]\ncolor = [0.8, 0.1, 0.1]\n'
     )
     text = head + "".join(lines)
-
-    def best(f):
-        times = []
-        for _ in range(3):
-            start = time.perf_counter()
-            f()
-            times.append(time.perf_counter() - start)
-        return min(times)
-
-    t_dict = best(lambda: prism.Scene.from_dict(d))
-    t_text = best(lambda: prism.loads(text))
-    # Through TOML text made in Python it was about 6x; the goal is 1.5x.
-    assert t_dict < 2.0 * t_text + 0.02, (t_dict, t_text)
     a = prism.Scene.from_dict(d).render(progress=False)
     assert a.tobytes() == prism.loads(text).render(progress=False).tobytes()
 

@@ -275,7 +275,12 @@ pub struct Part {
 /// reserved fallibly; after decoding, the pixels must match the digest the
 /// writer stored and, for a picture, be finite and non-negative.
 pub fn read_part(path: &Path) -> Result<Part, String> {
-    let file_len = std::fs::metadata(path).map_err(|e| e.to_string())?.len();
+    let file_meta = std::fs::metadata(path).map_err(|e| e.to_string())?;
+    if !file_meta.is_file() {
+        // A FIFO would block the decoder's open, a device never end.
+        return Err("not a regular file (a device, FIFO, socket or folder); expected an EXR part".into());
+    }
+    let file_len = file_meta.len();
     // The decoder is not ours: a file it cannot handle must be an error,
     // not a crash of the merge.
     let meta = std::panic::catch_unwind(|| exr::meta::MetaData::read_from_file(path, false))
