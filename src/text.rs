@@ -16,7 +16,8 @@ use std::fmt;
 /// `ESC [`), and the bidirectional overrides and isolates, which reorder
 /// what a line appears to say.
 pub fn is_unsafe_on_terminal(c: char) -> bool {
-    c.is_control() || matches!(c, '\u{200e}' | '\u{200f}' | '\u{202a}'..='\u{202e}' | '\u{2066}'..='\u{2069}')
+    c.is_control()
+        || matches!(c, '\u{200e}' | '\u{200f}' | '\u{202a}'..='\u{202e}' | '\u{2066}'..='\u{2069}')
 }
 
 /// `text` with every character [`is_unsafe_on_terminal`] escaped as
@@ -58,11 +59,17 @@ mod tests {
         assert_eq!(escape_controls("plain name é ✓"), "plain name é ✓");
         assert!(matches!(escape_controls("plain"), Cow::Borrowed(_)));
         assert_eq!(escape_controls("a\nFAKE: error"), "a\\nFAKE: error");
-        assert_eq!(escape_controls("\u{1b}]0;title\u{7}"), "\\u{1b}]0;title\\u{7}");
+        assert_eq!(
+            escape_controls("\u{1b}]0;title\u{7}"),
+            "\\u{1b}]0;title\\u{7}"
+        );
         assert_eq!(escape_controls("\u{1b}[2J\r"), "\\u{1b}[2J\\r");
         assert_eq!(escape_controls("\u{9b}31m"), "\\u{9b}31m");
         assert_eq!(escape_controls("\u{202e}txt"), "\\u{202e}txt");
-        assert_eq!(Shown(std::path::Path::new("a\tb").display()).to_string(), "a\\tb");
+        assert_eq!(
+            Shown(std::path::Path::new("a\tb").display()).to_string(),
+            "a\\tb"
+        );
     }
 
     #[test]

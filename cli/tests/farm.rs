@@ -138,7 +138,7 @@ fn merge_refuses_mixed_overlapping_and_incomplete_parts() {
     refused(
         d,
         &["merge", "t0.exr", "spp3.exr", "t2.exr", "-o", "out.png"],
-        "its settings is `96x70 spp=3",
+        "its spp is `3`, but",
     );
     refused(
         d,
@@ -683,6 +683,6 @@ fn an_exposed_png_merges_to_the_same_bytes() {
     refused(
         d,
         &["merge", "t0.exr", "plain.exr", "t2.exr", "-o", "out.png"],
-        "plain.exr: belongs to another render: its settings",
+        "plain.exr: belongs to another render: its exposure is `0`",
     );
 }

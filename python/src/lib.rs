@@ -54,6 +54,7 @@ fn for_python(message: &str) -> String {
         .replace("--allow-read DIR", "allow_read=[DIR]")
         .replace("--allow-read", "allow_read")
         .replace("--camera ", "camera ")
+        .replace("--width and --height", "width= and height=")
 }
 
 /// The scene error as a Python exception with its location. The message
@@ -247,7 +248,9 @@ impl Scene {
                 .map(|v| v as usize),
             ..*s
         };
-        settings.check().map_err(PyValueError::new_err)?;
+        settings
+            .check()
+            .map_err(|e| PyValueError::new_err(for_python(&e)))?;
         Ok(settings)
     }
 }
@@ -811,7 +814,21 @@ fn dict_key(key: &Bound<'_, PyAny>) -> Fit<String> {
 /// A Python value as a scene value: bool, int, float, str (and
 /// os.PathLike), list and tuple, dict (and any Mapping), NumPy arrays and
 /// scalars.
+/// How deep a dict scene may nest: far more than any scene needs, far less
+/// than the stack allows (a list that holds itself would recurse for ever).
+const MAX_NESTING: usize = 64;
+
 fn value_of(obj: &Bound<'_, PyAny>) -> Fit<Value> {
+    value_at(obj, 0)
+}
+
+fn value_at(obj: &Bound<'_, PyAny>, depth: usize) -> Fit<Value> {
+    if depth > MAX_NESTING {
+        return Err(unfit(format!(
+            "nested more than {MAX_NESTING} levels deep (a list or dict that holds itself?)"
+        )));
+    }
+    let value_of = |o: &Bound<'_, PyAny>| value_at(o, depth + 1);
     if let Ok(b) = obj.cast::<PyBool>() {
         return Ok(Value::Bool(b.is_true()));
     }
@@ -834,7 +851,11 @@ fn value_of(obj: &Bound<'_, PyAny>) -> Fit<Value> {
     }
     if let Ok(d) = obj.cast::<PyDict>() {
         let mut entries = Vec::with_capacity(d.len());
-        for (k, v) in d.iter() {
+        // A copy of the items: user code run below (`tolist`,
+        // `__fspath__`) may resize the dict, which its iterator forbids.
+        let items: Vec<(Bound<'_, PyAny>, Bound<'_, PyAny>)> =
+            d.items().iter().filter_map(|i| i.extract().ok()).collect();
+        for (k, v) in items {
             let key = dict_key(&k)?;
             match value_of(&v) {
                 Ok(v) => entries.push((key, v)),
@@ -844,10 +865,10 @@ fn value_of(obj: &Bound<'_, PyAny>) -> Fit<Value> {
         return Ok(Value::Table(entries));
     }
     if let Ok(l) = obj.cast::<PyList>() {
-        return items_of(l.iter());
+        return items_of(l.iter(), depth + 1);
     }
     if let Ok(t) = obj.cast::<PyTuple>() {
-        return items_of(t.iter());
+        return items_of(t.iter(), depth + 1);
     }
     let py = obj.py();
     let other = |e: PyErr| unfit(e.to_string());
@@ -883,10 +904,10 @@ fn value_of(obj: &Bound<'_, PyAny>) -> Fit<Value> {
     )))
 }
 
-fn items_of<'py>(items: impl Iterator<Item = Bound<'py, PyAny>>) -> Fit<Value> {
+fn items_of<'py>(items: impl Iterator<Item = Bound<'py, PyAny>>, depth: usize) -> Fit<Value> {
     let mut out = Vec::with_capacity(items.size_hint().0);
     for (i, item) in items.enumerate() {
-        out.push(value_of(&item).map_err(|e| e.at(format!("[{i}]")))?);
+        out.push(value_at(&item, depth).map_err(|e| e.at(format!("[{i}]")))?);
     }
     Ok(Value::Array(out))
 }

@@ -234,3 +234,18 @@ def test_messages_carry_no_raw_control_characters(tmp_path):
         prism.loads("", base_dir=tmp_path / bad)
     assert not any(c in str(e.value) for c in "\x1b\r\n\x07"), repr(str(e.value))
     assert prism.escape_controls("a\nb\x1b") == "a\\nb\\u{1b}"
+
+
+def test_from_dict_refuses_a_list_that_holds_itself():
+    # Walked without a bound it overflowed the stack and killed Python.
+    loop = []
+    loop.append(loop)
+    d = small()
+    d["objects"] = [{"type": "sphere", "material": "red", "center": loop, "radius": 1}]
+    with pytest.raises(ValueError, match="nested"):
+        prism.Scene.from_dict(d)
+    deep = {"type": "sphere"}
+    for _ in range(10_000):
+        deep = {"x": deep}
+    with pytest.raises(ValueError, match="nested"):
+        prism.Scene.from_dict(small(objects=[deep]))

@@ -36,8 +36,9 @@ pub struct Provenance {
     /// SHA-256 over the scene text and every file it read
     /// (`Inventory::content_hash`).
     pub scene_hash: String,
-    /// The model camera chosen by name (`--camera`), control characters
-    /// escaped; empty for the scene's own choice.
+    /// The model camera chosen by name (`--camera`), in ASCII: every
+    /// other character escaped as `\u{…}` (one name, one form; an EXR text
+    /// attribute holds Latin-1 only); empty for the scene's own choice.
     pub camera: String,
     /// The settings that change pixels, in canonical form
     /// (`RenderSettings::pixel_key`, with ` aov=NAME` for a debug view).
@@ -58,22 +59,27 @@ impl Provenance {
                 .inventory
                 .camera
                 .as_deref()
-                .map_or(String::new(), |c| crate::text::escape_controls(c).into_owned()),
+                .map_or(String::new(), |c| c.escape_default().to_string()),
             settings: settings.pixel_key(),
             seed: settings.seed,
             frame: settings.frame,
         }
     }
 
-    /// The fields as (name, value), in the order they are stored.
-    pub fn fields(&self) -> [(&'static str, String); 5] {
-        [
-            ("scene_sha256", self.scene_hash.clone()),
-            ("camera", self.camera.clone()),
+    /// The fields as (name, value), in the order they are stored; the
+    /// camera only when one was chosen by name, so the keys of every other
+    /// render (and their parts and checkpoints) stay as they were.
+    pub fn fields(&self) -> Vec<(&'static str, String)> {
+        let mut fields = vec![("scene_sha256", self.scene_hash.clone())];
+        if !self.camera.is_empty() {
+            fields.push(("camera", self.camera.clone()));
+        }
+        fields.extend([
             ("settings", self.settings.clone()),
             ("seed", self.seed.to_string()),
             ("frame", self.frame.to_string()),
-        ]
+        ]);
+        fields
     }
 
     /// Every option that changes a pixel as (name, value), the settings
@@ -82,7 +88,7 @@ impl Provenance {
     /// refusals name. An option a key does not carry has its default.
     pub fn options(&self) -> Vec<(String, String)> {
         let mut options = vec![
-            ("scene".to_string(), self.scene_hash.clone()),
+            ("scene_sha256".to_string(), self.scene_hash.clone()),
             (
                 "camera".to_string(),
                 if self.camera.is_empty() {
@@ -278,7 +284,9 @@ pub fn read_part(path: &Path) -> Result<Part, String> {
     let file_meta = std::fs::metadata(path).map_err(|e| e.to_string())?;
     if !file_meta.is_file() {
         // A FIFO would block the decoder's open, a device never end.
-        return Err("not a regular file (a device, FIFO, socket or folder); expected an EXR part".into());
+        return Err(
+            "not a regular file (a device, FIFO, socket or folder); expected an EXR part".into(),
+        );
     }
     let file_len = file_meta.len();
     // The decoder is not ours: a file it cannot handle must be an error,
@@ -403,4 +411,72 @@ fn split_digest(text: &str) -> Result<(&str, &str), String> {
         return Err(missing());
     }
     Ok((body, digest))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn provenance(camera: &str, settings: &str) -> Provenance {
+        Provenance {
+            scene_hash: "ab".into(),
+            camera: camera.into(),
+            settings: settings.into(),
+            seed: 1,
+            frame: 0,
+        }
+    }
+
+    #[test]
+    fn a_difference_names_the_option_not_the_line() {
+        let a = provenance("", "64x48 spp=4 max_depth=8 min_weight=0.001");
+        let region = Region::full(64, 48);
+        let diff = |b: &Provenance| a.difference(b).map(|d| d.0);
+        assert_eq!(diff(&a.clone()), None);
+        assert_eq!(
+            diff(&provenance("cam", &a.settings)).as_deref(),
+            Some("camera")
+        );
+        let spp = provenance("", "64x48 spp=8 max_depth=8 min_weight=0.001");
+        assert_eq!(diff(&spp).as_deref(), Some("spp"));
+        let size = provenance("", "64x40 spp=4 max_depth=8 min_weight=0.001");
+        assert_eq!(diff(&size).as_deref(), Some("size"));
+        // An option one key leaves out has its default in the other.
+        let exposed = provenance("", "64x48 spp=4 max_depth=8 min_weight=0.001 exposure=2");
+        assert_eq!(
+            a.difference(&exposed),
+            Some(("exposure".into(), "0".into(), "2".into()))
+        );
+        let aov = provenance("", "64x48 spp=4 max_depth=8 min_weight=0.001 aov=normal");
+        assert_eq!(diff(&aov).as_deref(), Some("aov"));
+        // Checkpoint keys: the option, then the region.
+        let key = a.to_text(region);
+        assert_eq!(Provenance::key_difference(&key, &key), None);
+        let other = Provenance::key_difference(&key, &spp.to_text(region)).unwrap();
+        assert!(
+            other.contains("its spp is `8`, this render's `4`"),
+            "{other}"
+        );
+        let moved = Provenance::key_difference(&key, &a.to_text(Region::full(64, 40))).unwrap();
+        assert!(moved.starts_with("its region is"), "{moved}");
+    }
+
+    #[test]
+    fn keys_without_a_camera_are_as_they_were_and_names_stay_apart() {
+        let a = provenance("", "64x48 spp=4 max_depth=8 min_weight=0.001");
+        let text = a.to_text(Region::full(64, 48));
+        assert!(!text.contains("camera"), "{text}");
+        assert_eq!(Provenance::from_text(&text).unwrap().0, a);
+        // Any name, one ASCII form: a control character and its written-out
+        // escape stay apart, and CJK is Latin-1-safe for the EXR attribute.
+        let forms: Vec<String> = ["a\u{1b}", "a\\u{1b}", "相机"]
+            .iter()
+            .map(|n| n.escape_default().to_string())
+            .collect();
+        assert_ne!(forms[0], forms[1]);
+        assert!(forms.iter().all(|f| f.is_ascii()));
+        let named = provenance(&forms[2], &a.settings);
+        let text = named.to_text(Region::full(64, 48));
+        assert_eq!(Provenance::from_text(&text).unwrap().0, named);
+    }
 }

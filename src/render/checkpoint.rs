@@ -54,7 +54,8 @@ impl Checkpoint {
             crate::scene::resources::Extent::Whole(MAX_MANIFEST_BYTES),
         )
         .and_then(|b| {
-            String::from_utf8(b).map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e))
+            String::from_utf8(b)
+                .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e))
         });
         match read {
             Ok(old) if old == key => {}
@@ -93,7 +94,14 @@ impl Checkpoint {
             if fits && path.extension().is_some_and(|e| e == "tile") {
                 // A damaged tile, one of another render, or one moved from
                 // its place is traced again, not trusted.
-                let decoded = std::fs::read(&path).ok().and_then(|b| decode(key, &b));
+                // Read as a regular file of at most a tile's size (a FIFO
+                // or a link to a device named `*.tile` is skipped).
+                let decoded = crate::scene::resources::read_regular(
+                    &path,
+                    crate::scene::resources::Extent::Whole(MAX_TILE_BYTES),
+                )
+                .ok()
+                .and_then(|b| decode(key, &b));
                 if let Some((region, pixels)) = decoded
                     && path.file_name() == Some(tile_name(region).as_ref())
                 {

@@ -227,7 +227,10 @@ pub fn read_regular(path: &Path, extent: Extent) -> std::io::Result<Vec<u8>> {
         Extent::Whole(limit) if bytes.len() as u64 > limit => Err(too_large(limit)),
         Extent::Prefix(len) if (bytes.len() as u64) < len => Err(Error::new(
             ErrorKind::UnexpectedEof,
-            format!("{len} bytes are declared, but the file holds only {}", bytes.len()),
+            format!(
+                "{len} bytes are declared, but the file holds only {}",
+                bytes.len()
+            ),
         )),
         _ => Ok(bytes),
     }

@@ -81,13 +81,29 @@ pub fn explain_command(args: &ExplainArgs) -> ExitCode {
         }
     };
     let text = if args.json {
-        serde_json::to_string_pretty(&explanation).unwrap_or_default()
+        json_for_terminal(&serde_json::to_string_pretty(&explanation).unwrap_or_default())
     } else {
         describe(&explanation)
     };
     // A reader that stops early (`| head`) is not an error.
     let _ = writeln!(std::io::stdout().lock(), "{text}");
     ExitCode::SUCCESS
+}
+
+/// JSON with every character a terminal must not get raw written as a
+/// `\uXXXX` escape (serde_json escapes only those below U+0020; DEL, the
+/// C1 controls and bidi overrides in names would pass): the same JSON.
+fn json_for_terminal(json: &str) -> String {
+    let mut out = String::with_capacity(json.len());
+    for c in json.chars() {
+        if prism::text::is_unsafe_on_terminal(c) {
+            // All of them lie in the Basic Multilingual Plane.
+            out.push_str(&format!("\\u{:04x}", c as u32));
+        } else {
+            out.push(c);
+        }
+    }
+    out
 }
 
 fn rgb(v: [f64; 3]) -> String {

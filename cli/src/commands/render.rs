@@ -444,7 +444,10 @@ impl Job<'_> {
         if !args.quiet && !terminal {
             say_err!(
                 "prism: rendering {}x{} {what}, {} spp, {} threads",
-                settings.width, settings.height, settings.spp, threads
+                settings.width,
+                settings.height,
+                settings.spp,
+                threads
             );
         }
         if let Some(c) = checkpoint

@@ -852,7 +852,9 @@ impl<'a> Reader<'a> {
                     for i in 0..count {
                         let n = DVec3::new(normals.get(i, 0), normals.get(i, 1), normals.get(i, 2));
                         if !n.is_finite() {
-                            return Err(format!("{at}.attributes.NORMAL: normal {i} is not finite"));
+                            return Err(format!(
+                                "{at}.attributes.NORMAL: normal {i} is not finite"
+                            ));
                         }
                         data.normals.push(n);
                     }
