@@ -408,6 +408,24 @@ fn a_refused_part_is_rendered_again_and_other_frames_merge() {
         status.contains("frame 0: 1/2 parts; merge failed:") && status.contains("not of frame 0"),
         "{status}"
     );
+    // A reason planted with terminal controls is shown escaped, on its line.
+    let reason = out.join("failed/frame_0000.txt");
+    let kept = std::fs::read(&reason).unwrap();
+    std::fs::write(
+        &reason,
+        "x\u{1b}]0;pwned\u{7}\u{1b}[2J\r\nFAKE: error\u{9b}",
+    )
+    .unwrap();
+    let status = ok(run(&prism, d, &["farm", "status", o]), "status");
+    assert!(
+        !status.lines().any(|l| l.starts_with("FAKE"))
+            && !status
+                .chars()
+                .any(|c| c != '\n' && prism::text::is_unsafe_on_terminal(c)),
+        "{status:?}"
+    );
+    assert!(status.contains("\\u{1b}]0;pwned"), "{status}");
+    std::fs::write(&reason, kept).unwrap();
     let rerun = ok(run(&prism, d, &plan), "rerun");
     assert!(rerun.contains("--array=1 "), "{rerun}");
     run_task(&out, 1);

@@ -96,7 +96,9 @@ pub fn explain_command(args: &ExplainArgs) -> ExitCode {
 fn json_for_terminal(json: &str) -> String {
     let mut out = String::with_capacity(json.len());
     for c in json.chars() {
-        if prism::text::is_unsafe_on_terminal(c) {
+        // The pretty-printer's own line breaks stay; one inside a string
+        // is `\n` already.
+        if c != '\n' && prism::text::is_unsafe_on_terminal(c) {
             // All of them lie in the Basic Multilingual Plane.
             out.push_str(&format!("\\u{:04x}", c as u32));
         } else {

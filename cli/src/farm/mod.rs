@@ -282,7 +282,14 @@ impl Progress {
             let failure = if merged {
                 None
             } else {
-                std::fs::read_to_string(outdir.join(Plan::failure_file(frame))).ok()
+                // A merge's reason is a line or two: read as a regular
+                // file, never more than 64 KiB of it.
+                prism::scene::resources::read_regular(
+                    &outdir.join(Plan::failure_file(frame)),
+                    prism::scene::resources::Extent::Whole(1 << 16),
+                )
+                .ok()
+                .map(|b| String::from_utf8_lossy(&b).into_owned())
             };
             frames.push(FrameProgress {
                 frame,
