@@ -45,7 +45,7 @@ fn two_cameras(edit: impl FnOnce(&mut Value)) -> tempfile::TempDir {
     nodes[first_camera]["name"] = json!("cam");
     nodes.push(json!({
         "camera": 0, "name": "top上", "translation": [0, 6, 0.01],
-        "rotation": [-0.70710678, 0, 0, 0.70710678]
+        "rotation": [-std::f64::consts::FRAC_1_SQRT_2, 0, 0, std::f64::consts::FRAC_1_SQRT_2]
     }));
     let top = nodes.len() - 1;
     g["scenes"][0]["nodes"]
