@@ -155,7 +155,7 @@ class PrismRenderEngine(bpy.types.RenderEngine):
         if outcome.cancelled:
             return
         if outcome.errors:
-            return self._fail("\n".join(outcome.errors))
+            return self._fail(outcome.errors)
         # Blender calls render() once per view layer; the image is that layer's.
         result = self.begin_result(0, 0, x1 - x0, y1 - y0, layer=depsgraph.view_layer.name)
         try:
@@ -167,11 +167,14 @@ class PrismRenderEngine(bpy.types.RenderEngine):
         self.update_progress(1.0)
 
     def _fail(self, message):
-        # Names from the scene and paths reach these lines: escaped.
+        """Reports `message` (one line, or Prism's error lines as a list).
+
+        Names from the scene and paths reach these lines: each is escaped
+        whole, so a name's newline cannot make a report line of its own."""
         lines = report_lines(message)
         for line in lines:
             self.report({"ERROR"}, f"Prism: {line}")
-        self.error_set(f"Prism: {lines[0] if message else 'failed'}")
+        self.error_set(f"Prism: {lines[0] if lines and lines[0] else 'failed'}")
 
 
 class Cancelled(Exception):

@@ -25,8 +25,7 @@ def escape_controls(text):
 
 
 def report_lines(message):
-    """The lines of `message`, each escaped: one report per line."""
-    # Split on "\n" alone, as the library does: splitlines() would also
-    # break on "\r", "\x0b", "\x1c", "\x85", U+2028, … and make a forged
-    # line of what follows them.
-    return [escape_controls(line) for line in message.split("\n")]
+    """One report line per entry of `message` (a list of lines, or one
+    string taken as a single line), each escaped whole."""
+    lines = [message] if isinstance(message, str) else list(message)
+    return [escape_controls(line) for line in lines] or [""]

@@ -35,7 +35,8 @@ real_fail = engine._fail
 
 
 def fail(self, message):
-    reports.append(message)
+    # One line, or Prism's error lines as a list.
+    reports.extend([message] if isinstance(message, str) else message)
     real_fail(self, message)
 
 
