@@ -249,3 +249,14 @@ def test_from_dict_refuses_a_list_that_holds_itself():
         deep = {"x": deep}
     with pytest.raises(ValueError, match="nested"):
         prism.Scene.from_dict(small(objects=[deep]))
+
+
+def test_only_regular_files_are_loaded(tmp_path):
+    # /dev/zero was read until memory ran out; a FIFO with no writer
+    # blocked for ever, past Ctrl-C. Both are refused at once, named.
+    fifo = tmp_path / "pipe.toml"
+    os.mkfifo(fifo)
+    for path in ["/dev/zero", str(fifo), str(tmp_path)]:
+        with pytest.raises(prism.SceneError) as e:
+            prism.load(path)
+        assert "not a regular file" in str(e.value) and path in str(e.value), str(e.value)
