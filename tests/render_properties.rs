@@ -62,6 +62,60 @@ fn sphere_silhouette_has_area_pi_r_squared() {
     assert!((area - expected).abs() / expected < 0.005, "area {area}");
 }
 
+/// Boxes, cylinders, cones and discs seen from above cover the areas
+/// geometry gives them: a turned box its rectangle, a cylinder lying
+/// down 2r·h, a cone lying down its triangle r·h plus nothing of its base
+/// (seen edge-on), a tilted ring π(R² − h²)·cos θ, an open cylinder seen
+/// down its axis only its wall (zero area in orthographic view: a circle).
+#[test]
+fn solids_cover_the_areas_geometry_gives_them() {
+    let pi = std::f64::consts::PI;
+    let cos30 = 3f64.sqrt() / 2.0;
+    for (object, expected, tolerance) in [
+        (
+            "type = \"box\"\ncorner1 = [-1.2, -0.5, -1]\ncorner2 = [0.8, 0.5, 0.3]\n\
+             transform = [{ rotate = { axis = [0, 0, 1], degrees = 25 } }]",
+            2.0,
+            0.01,
+        ),
+        (
+            "type = \"cylinder\"\nbase = [-1.5, 0.2, 0]\ncap = [1.0, 0.2, 0]\nradius = 0.6",
+            2.0 * 0.6 * 2.5,
+            0.01,
+        ),
+        (
+            "type = \"cone\"\nbase = [-1, 0, 0]\ncap = [1, 0, 0]\nbase_radius = 1\ncap_radius = 0",
+            1.0 * 2.0,
+            0.01,
+        ),
+        (
+            "type = \"cone\"\nbase = [-1, 0, 0]\ncap = [1, 0, 0]\nbase_radius = 1\ncap_radius = 0.5",
+            (1.0 + 0.5) * 2.0,
+            0.01,
+        ),
+        (
+            "type = \"disc\"\nnormal = [0, 0.5, 0.8660254037844386]\nradius = 1.5\nhole_radius = 0.5",
+            pi * (1.5 * 1.5 - 0.25) * cos30,
+            0.01,
+        ),
+    ] {
+        let s = scene(&silhouette_scene(object));
+        let area = covered_area(&film(&s, 2), 4.0);
+        assert!(
+            (area - expected).abs() / expected < tolerance,
+            "{object}: area {area}, expected {expected}"
+        );
+    }
+    // Down the axis of an open cylinder: only the wall's edge, and the
+    // ring between its radii when capped.
+    let open = "type = \"cylinder\"\nbase = [0, 0, -1]\ncap = [0, 0, 1]\nradius = 1\nopen = true";
+    let area = covered_area(&film(&scene(&silhouette_scene(open)), 2), 4.0);
+    assert!(area < 0.05, "an open tube seen down its axis: {area}");
+    let capped = open.replace("open = true", "open = false");
+    let area = covered_area(&film(&scene(&silhouette_scene(&capped)), 2), 4.0);
+    assert!((area - pi).abs() / pi < 0.005, "its cap: {area}");
+}
+
 #[test]
 fn non_uniformly_scaled_sphere_is_an_ellipse_of_area_pi_a_b() {
     let s = scene(&silhouette_scene(

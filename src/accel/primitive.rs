@@ -2,7 +2,9 @@
 
 use glam::{DVec2, DVec3};
 
-use crate::geometry::{Aabb, Ellipsoid, MeshInstance, Plane, Polygon, ShapeHit, Sphere};
+use crate::geometry::{
+    Aabb, Cone, Cuboid, Disc, Ellipsoid, MeshInstance, Plane, Polygon, ShapeHit, Sphere,
+};
 use crate::math::Frame;
 use crate::math::Ray;
 use crate::math::transcendental;
@@ -22,6 +24,12 @@ pub enum Shape {
     Polygon(Box<Polygon>),
     /// A placed triangle mesh.
     Mesh(Box<MeshInstance>),
+    /// A box (POV-Ray's `box`), placed by a transform.
+    Cuboid(Box<Cuboid>),
+    /// A truncated cone or cylinder, capped or open.
+    Cone(Box<Cone>),
+    /// A flat disc or ring.
+    Disc(Box<Disc>),
 }
 
 /// A shape with its material.
@@ -43,6 +51,9 @@ impl Shape {
             Shape::Plane(p) => p.intersect(ray, t_min, t_max),
             Shape::Polygon(p) => p.intersect(ray, t_min, t_max),
             Shape::Mesh(m) => m.intersect(ray, t_min, t_max),
+            Shape::Cuboid(b) => b.intersect(ray, t_min, t_max),
+            Shape::Cone(c) => c.intersect(ray, t_min, t_max),
+            Shape::Disc(d) => d.intersect(ray, t_min, t_max),
         }
     }
 
@@ -60,7 +71,8 @@ impl Shape {
     /// Texture coordinates at `point` of `hit`: spheres and ellipsoids by
     /// longitude and latitude (u = 0.5 + atan2(z, x)/2π, v = 0.5 + asin(y)/π
     /// on the unit sphere), planes and polygons by coordinates in the plane,
-    /// meshes by what the hit carries.
+    /// meshes by what the hit carries; boxes, cones and discs as their
+    /// files say.
     pub fn uv(&self, point: DVec3, hit: &ShapeHit) -> DVec2 {
         let spherical = |p: DVec3| {
             DVec2::new(
@@ -78,6 +90,9 @@ impl Shape {
             Shape::Plane(p) => planar(p.normal),
             Shape::Polygon(p) => planar(p.plane.normal),
             Shape::Mesh(_) => hit.uv,
+            Shape::Cuboid(b) => b.uv(point),
+            Shape::Cone(c) => c.uv(point, hit.normal),
+            Shape::Disc(d) => d.uv(point),
         }
     }
 
@@ -90,6 +105,9 @@ impl Shape {
             Shape::Plane(_) => None,
             Shape::Polygon(p) => Some(p.bounds()),
             Shape::Mesh(m) => Some(m.bounds()),
+            Shape::Cuboid(b) => Some(b.bounds()),
+            Shape::Cone(c) => Some(c.bounds()),
+            Shape::Disc(d) => Some(d.bounds()),
         }
     }
 }

@@ -2,6 +2,9 @@
 //! carries the formula from the lecture notes it implements.
 
 pub mod aabb;
+pub mod cone;
+pub mod cuboid;
+pub mod disc;
 pub mod hit;
 pub mod instance;
 pub mod mesh;
@@ -11,6 +14,9 @@ pub mod sphere;
 pub mod triangle;
 
 pub use aabb::Aabb;
+pub use cone::Cone;
+pub use cuboid::Cuboid;
+pub use disc::Disc;
 pub use hit::{Hit, ShapeHit};
 pub use instance::MeshInstance;
 pub use mesh::{Mesh, MeshData, MeshError};

@@ -48,7 +48,7 @@ struct ChosenCamera {
 }
 use crate::accel::{Aggregate, Primitive, Shape};
 use crate::camera::{Camera, FovAxis, Projection};
-use crate::geometry::{Ellipsoid, Mesh, MeshInstance, Plane, Polygon, Sphere};
+use crate::geometry::{Cone, Cuboid, Disc, Ellipsoid, Mesh, MeshInstance, Plane, Polygon, Sphere};
 use crate::lights::{Light, LightShape};
 use crate::limits;
 use crate::math::Transform;
@@ -870,6 +870,10 @@ impl Check<'_, '_> {
             ObjectKind::Plane => &["normal", "distance", "point"],
             ObjectKind::Polygon => &["vertices"],
             ObjectKind::Mesh => &["file", "light_scale", "camera"],
+            ObjectKind::Box => &["corner1", "corner2"],
+            ObjectKind::Cylinder => &["base", "cap", "radius", "open"],
+            ObjectKind::Cone => &["base", "cap", "base_radius", "cap_radius", "open"],
+            ObjectKind::Disc => &["center", "normal", "radius", "hole_radius"],
         };
         let present = [
             ("center", d.center.as_ref().map(Spanned::span)),
@@ -881,6 +885,14 @@ impl Check<'_, '_> {
             ("file", d.file.as_ref().map(Spanned::span)),
             ("light_scale", d.light_scale.as_ref().map(Spanned::span)),
             ("camera", d.camera.as_ref().map(Spanned::span)),
+            ("corner1", d.corner1.as_ref().map(Spanned::span)),
+            ("corner2", d.corner2.as_ref().map(Spanned::span)),
+            ("base", d.base.as_ref().map(Spanned::span)),
+            ("cap", d.cap.as_ref().map(Spanned::span)),
+            ("base_radius", d.base_radius.as_ref().map(Spanned::span)),
+            ("cap_radius", d.cap_radius.as_ref().map(Spanned::span)),
+            ("open", d.open.as_ref().map(Spanned::span)),
+            ("hole_radius", d.hole_radius.as_ref().map(Spanned::span)),
         ];
         for (key, span) in present {
             if let Some(span) = span.filter(|_| !allowed.contains(&key)) {
@@ -1057,6 +1069,117 @@ impl Check<'_, '_> {
                     transform.point(point),
                     transform.normal(normal),
                 ))
+            }
+            ObjectKind::Box => {
+                let (Some(c1), Some(c2)) = (&d.corner1, &d.corner2) else {
+                    self.error(
+                        desc.span(),
+                        format!("{label}: a box needs `corner1` and `corner2`"),
+                    );
+                    return None;
+                };
+                let (a, b) = (self.point(c1, "corner1"), self.point(c2, "corner2"));
+                let (min, max) = (a.min(b), a.max(b));
+                if (max - min).min_element() < limits::MIN_LENGTH {
+                    self.error(
+                        c2.span(),
+                        format!("{label}: the corners must differ along every axis (a flat box is a polygon)"),
+                    );
+                    return None;
+                }
+                Shape::Cuboid(Box::new(Cuboid {
+                    min,
+                    max,
+                    transform: transform?,
+                }))
+            }
+            ObjectKind::Cylinder | ObjectKind::Cone => {
+                let (Some(base), Some(cap)) = (&d.base, &d.cap) else {
+                    self.error(
+                        desc.span(),
+                        format!("{label}: a {} needs `base` and `cap`", kind.name()),
+                    );
+                    return None;
+                };
+                let (b, c) = (self.point(base, "base"), self.point(cap, "cap"));
+                let (r0, r1) = if kind == ObjectKind::Cylinder {
+                    let r = self.number(&d.radius, 1.0, "radius", LENGTH);
+                    (r, r)
+                } else {
+                    (
+                        self.number(&d.base_radius, 1.0, "base_radius", LENGTH_OR_ZERO),
+                        self.number(&d.cap_radius, 0.0, "cap_radius", LENGTH_OR_ZERO),
+                    )
+                };
+                if r0 == 0.0 && r1 == 0.0 {
+                    self.error(
+                        desc.span(),
+                        format!("{label}: a cone needs a radius above 0 at one end"),
+                    );
+                    return None;
+                }
+                let axis = c - b;
+                if axis.length() < limits::MIN_LENGTH {
+                    self.error(
+                        cap.span(),
+                        format!("{label}: `cap` must differ from `base`"),
+                    );
+                    return None;
+                }
+                // Object space: the axis along z from 0 (base) to 1 (cap).
+                let f = crate::math::Frame::from_z(axis.normalize());
+                let local =
+                    DAffine3::from_mat3_translation(glam::DMat3::from_cols(f.x, f.y, axis), b);
+                let Some(placed) = Transform::from_affine(transform?.to_world * local) else {
+                    self.error(
+                        desc.span(),
+                        format!("{label}: its transform is singular or out of range"),
+                    );
+                    return None;
+                };
+                Shape::Cone(Box::new(Cone {
+                    base_radius: r0,
+                    cap_radius: r1,
+                    open: d.open.as_ref().is_some_and(|o| *o.get_ref()),
+                    transform: placed,
+                }))
+            }
+            ObjectKind::Disc => {
+                let Some(normal_desc) = &d.normal else {
+                    self.error(desc.span(), format!("{label}: a disc needs `normal`"));
+                    return None;
+                };
+                let normal = self.direction(normal_desc, "normal");
+                let center = d
+                    .center
+                    .as_ref()
+                    .map_or(DVec3::ZERO, |c| self.point(c, "center"));
+                let radius = self.number(&d.radius, 1.0, "radius", LENGTH);
+                let hole = self.number(&d.hole_radius, 0.0, "hole_radius", LENGTH_OR_ZERO);
+                if hole >= radius {
+                    self.error(
+                        d.hole_radius.as_ref().map_or(desc.span(), Spanned::span),
+                        format!(
+                            "{label}: `hole_radius` {hole} must be less than `radius` {radius}"
+                        ),
+                    );
+                    return None;
+                }
+                let f = crate::math::Frame::from_z(normal);
+                let local =
+                    DAffine3::from_mat3_translation(glam::DMat3::from_cols(f.x, f.y, f.z), center);
+                let Some(placed) = Transform::from_affine(transform?.to_world * local) else {
+                    self.error(
+                        desc.span(),
+                        format!("{label}: its transform is singular or out of range"),
+                    );
+                    return None;
+                };
+                Shape::Disc(Box::new(Disc {
+                    radius,
+                    hole_radius: hole,
+                    transform: placed,
+                }))
             }
             ObjectKind::Polygon => {
                 let Some(vertices) = &d.vertices else {

@@ -266,6 +266,14 @@ pub enum ObjectKind {
     Polygon,
     /// Triangle mesh from a model file.
     Mesh,
+    /// Box between two corners (POV-Ray's `box`).
+    Box,
+    /// Cylinder between two end points, capped or open.
+    Cylinder,
+    /// Truncated cone between two end points with a radius at each.
+    Cone,
+    /// Flat disc or ring.
+    Disc,
 }
 
 impl ObjectKind {
@@ -276,6 +284,10 @@ impl ObjectKind {
             ObjectKind::Plane => "plane",
             ObjectKind::Polygon => "polygon",
             ObjectKind::Mesh => "mesh",
+            ObjectKind::Box => "box",
+            ObjectKind::Cylinder => "cylinder",
+            ObjectKind::Cone => "cone",
+            ObjectKind::Disc => "disc",
         }
     }
 }
@@ -309,6 +321,22 @@ pub struct ObjectDesc {
     pub point: Option<Triple>,
     /// Polygon vertices.
     pub vertices: Option<Spanned<Vec<[f64; 3]>>>,
+    /// Box: one corner.
+    pub corner1: Option<Triple>,
+    /// Box: the opposite corner.
+    pub corner2: Option<Triple>,
+    /// Cylinder, cone: the centre of the base end.
+    pub base: Option<Triple>,
+    /// Cylinder, cone: the centre of the cap end.
+    pub cap: Option<Triple>,
+    /// Cone: the radius at `base`.
+    pub base_radius: Option<Number>,
+    /// Cone: the radius at `cap` (0: a tip).
+    pub cap_radius: Option<Number>,
+    /// Cylinder, cone: without the end discs.
+    pub open: Option<Spanned<bool>>,
+    /// Disc: the radius of the hole in its middle.
+    pub hole_radius: Option<Number>,
     /// Transform, applied first to last.
     pub transform: Option<Vec<Spanned<TransformOp>>>,
 }

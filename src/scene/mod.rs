@@ -104,6 +104,12 @@ pub struct Census {
     pub planes: usize,
     /// Polygons.
     pub polygons: usize,
+    /// Boxes.
+    pub boxes: usize,
+    /// Cones and cylinders.
+    pub cones: usize,
+    /// Discs.
+    pub discs: usize,
     /// Mesh placements (instances).
     pub mesh_instances: usize,
     /// Distinct meshes (each stored once however often placed).
@@ -128,6 +134,18 @@ impl Scene {
             match &p.shape {
                 Shape::Sphere(_) | Shape::Ellipsoid(_) => c.spheres += 1,
                 Shape::Plane(_) => c.planes += 1,
+                Shape::Cuboid(_) => {
+                    c.boxes += 1;
+                    bytes += std::mem::size_of::<crate::geometry::Cuboid>() as u64;
+                }
+                Shape::Cone(_) => {
+                    c.cones += 1;
+                    bytes += std::mem::size_of::<crate::geometry::Cone>() as u64;
+                }
+                Shape::Disc(_) => {
+                    c.discs += 1;
+                    bytes += std::mem::size_of::<crate::geometry::Disc>() as u64;
+                }
                 Shape::Polygon(poly) => {
                     c.polygons += 1;
                     bytes += (poly.vertices().len() * 40) as u64;
@@ -428,6 +446,69 @@ mod tests {
             "{both}"
         );
         assert_eq!(both.matches("error").count(), 1, "{both}");
+    }
+
+    #[test]
+    fn boxes_cylinders_cones_and_discs_are_built_and_checked() {
+        let Shape::Cuboid(b) = shape("type = \"box\"\ncorner1 = [1, 2, 3]\ncorner2 = [-1, 0, 0]")
+        else {
+            panic!("a box")
+        };
+        assert_eq!(
+            (b.min, b.max),
+            (DVec3::new(-1.0, 0.0, 0.0), DVec3::new(1.0, 2.0, 3.0))
+        );
+        let Shape::Cone(c) = shape(
+            "type = \"cylinder\"\nbase = [0, 0, 0]\ncap = [0, 2, 0]\nradius = 0.5\nopen = true",
+        ) else {
+            panic!("a cylinder")
+        };
+        assert_eq!((c.base_radius, c.cap_radius, c.open), (0.5, 0.5, true));
+        // The cap end lies at object z = 1, two units up.
+        assert!((c.transform.point(DVec3::Z) - DVec3::new(0.0, 2.0, 0.0)).length() < 1e-12);
+        let Shape::Cone(tip) = shape("type = \"cone\"\nbase = [0, 0, 0]\ncap = [1, 0, 0]") else {
+            panic!("a cone")
+        };
+        assert_eq!((tip.base_radius, tip.cap_radius), (1.0, 0.0));
+        assert!(matches!(
+            shape("type = \"disc\"\nnormal = [0, 1, 0]\nradius = 2\nhole_radius = 1"),
+            Shape::Disc(_)
+        ));
+        let head = "[[objects]]\nmaterial = \"m\"\n";
+        for (body, wanted) in [
+            (
+                "type = \"box\"\ncorner1 = [0, 0, 0]\ncorner2 = [1, 1, 0]",
+                "differ along every axis",
+            ),
+            (
+                "type = \"box\"\ncorner1 = [0, 0, 0]",
+                "needs `corner1` and `corner2`",
+            ),
+            (
+                "type = \"cylinder\"\nbase = [1, 1, 1]\ncap = [1, 1, 1]",
+                "`cap` must differ",
+            ),
+            (
+                "type = \"cone\"\nbase = [0, 0, 0]\ncap = [0, 1, 0]\nbase_radius = 0",
+                "a radius above 0",
+            ),
+            (
+                "type = \"disc\"\nnormal = [0, 0, 1]\nradius = 1\nhole_radius = 1",
+                "less than `radius`",
+            ),
+            ("type = \"disc\"\nradius = 1", "needs `normal`"),
+            (
+                "type = \"cylinder\"\nbase = [0, 0, 0]\ncap = [0, 1, 0]\nhole_radius = 1",
+                "does not apply to a cylinder",
+            ),
+            (
+                "type = \"box\"\ncorner1 = [0, 0, 0]\ncorner2 = [1, 1, 1]\nopen = true",
+                "does not apply to a box",
+            ),
+        ] {
+            let m = messages(&format!("{head}{body}"));
+            assert!(m.iter().any(|m| m.contains(wanted)), "{body}: {m:?}");
+        }
     }
 
     #[test]

@@ -130,7 +130,8 @@ fn check(path: &Path, load: &LoadArgs) -> ExitCode {
             let _ = writeln!(
                 std::io::stdout().lock(),
                 "{}: ok ({} objects, {} lights, {} materials)\n\
-                 primitives: {} spheres, {} planes, {} polygons, {} mesh instances\n\
+                 primitives: {} spheres, {} planes, {} polygons, {} boxes, {} cones and \
+                 cylinders, {} discs, {} mesh instances\n\
                  meshes: {} stored ({} triangles), {} triangles placed\n\
                  textures: {} ({:.1} MiB)\n\
                  estimated memory: {:.1} MiB\n\
@@ -142,6 +143,9 @@ fn check(path: &Path, load: &LoadArgs) -> ExitCode {
                 c.spheres,
                 c.planes,
                 c.polygons,
+                c.boxes,
+                c.cones,
+                c.discs,
                 c.mesh_instances,
                 c.meshes,
                 c.triangles,
