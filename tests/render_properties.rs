@@ -66,7 +66,8 @@ fn sphere_silhouette_has_area_pi_r_squared() {
 /// geometry gives them: a turned box its rectangle, a cylinder lying
 /// down 2r·h, a cone lying down its triangle r·h plus nothing of its base
 /// (seen edge-on), a tilted ring π(R² − h²)·cos θ, an open cylinder seen
-/// down its axis only its wall (zero area in orthographic view: a circle).
+/// down its axis only its wall (zero area in orthographic view: a circle),
+/// a torus its annulus 4πRr along its axis and its stadium edge-on.
 #[test]
 fn solids_cover_the_areas_geometry_gives_them() {
     let pi = std::f64::consts::PI;
@@ -96,6 +97,20 @@ fn solids_cover_the_areas_geometry_gives_them() {
         (
             "type = \"disc\"\nnormal = [0, 0.5, 0.8660254037844386]\nradius = 1.5\nhole_radius = 0.5",
             pi * (1.5 * 1.5 - 0.25) * cos30,
+            0.01,
+        ),
+        (
+            // Seen along its axis: the annulus from R − r to R + r, 4πRr.
+            "type = \"torus\"\nmajor_radius = 1.2\nminor_radius = 0.4\n\
+             transform = [{ rotate = { axis = [1, 0, 0], degrees = 90 } }]",
+            4.0 * pi * 1.2 * 0.4,
+            0.01,
+        ),
+        (
+            // Seen edge-on: two discs of radius r and the band between
+            // them, 2(R + r)·2r less the corners the round ends leave out.
+            "type = \"torus\"\nmajor_radius = 1.2\nminor_radius = 0.4",
+            2.0 * 1.6 * 0.8 - (4.0 - pi) * 0.4 * 0.4,
             0.01,
         ),
     ] {

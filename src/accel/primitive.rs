@@ -3,7 +3,7 @@
 use glam::{DVec2, DVec3};
 
 use crate::geometry::{
-    Aabb, Cone, Cuboid, Disc, Ellipsoid, MeshInstance, Plane, Polygon, ShapeHit, Sphere,
+    Aabb, Cone, Cuboid, Disc, Ellipsoid, MeshInstance, Plane, Polygon, ShapeHit, Sphere, Torus,
 };
 use crate::math::Frame;
 use crate::math::Ray;
@@ -30,6 +30,8 @@ pub enum Shape {
     Cone(Box<Cone>),
     /// A flat disc or ring.
     Disc(Box<Disc>),
+    /// A torus (its quartic solved by root isolation).
+    Torus(Box<Torus>),
 }
 
 /// A shape with its material.
@@ -54,6 +56,7 @@ impl Shape {
             Shape::Cuboid(b) => b.intersect(ray, t_min, t_max),
             Shape::Cone(c) => c.intersect(ray, t_min, t_max),
             Shape::Disc(d) => d.intersect(ray, t_min, t_max),
+            Shape::Torus(t) => t.intersect(ray, t_min, t_max),
         }
     }
 
@@ -93,6 +96,7 @@ impl Shape {
             Shape::Cuboid(b) => b.uv(point),
             Shape::Cone(c) => c.uv(point, hit.normal),
             Shape::Disc(d) => d.uv(point),
+            Shape::Torus(t) => t.uv(point),
         }
     }
 
@@ -108,6 +112,7 @@ impl Shape {
             Shape::Cuboid(b) => Some(b.bounds()),
             Shape::Cone(c) => Some(c.bounds()),
             Shape::Disc(d) => Some(d.bounds()),
+            Shape::Torus(t) => Some(t.bounds()),
         }
     }
 }

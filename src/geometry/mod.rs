@@ -11,6 +11,7 @@ pub mod mesh;
 pub mod plane;
 pub mod polygon;
 pub mod sphere;
+pub mod torus;
 pub mod triangle;
 
 pub use aabb::Aabb;
@@ -23,3 +24,4 @@ pub use mesh::{Mesh, MeshData, MeshError};
 pub use plane::Plane;
 pub use polygon::{Polygon, PolygonError};
 pub use sphere::{Ellipsoid, Sphere};
+pub use torus::Torus;

@@ -48,7 +48,9 @@ struct ChosenCamera {
 }
 use crate::accel::{Aggregate, Primitive, Shape};
 use crate::camera::{Camera, FovAxis, Projection};
-use crate::geometry::{Cone, Cuboid, Disc, Ellipsoid, Mesh, MeshInstance, Plane, Polygon, Sphere};
+use crate::geometry::{
+    Cone, Cuboid, Disc, Ellipsoid, Mesh, MeshInstance, Plane, Polygon, Sphere, Torus,
+};
 use crate::lights::{Light, LightShape};
 use crate::limits;
 use crate::math::Transform;
@@ -874,6 +876,7 @@ impl Check<'_, '_> {
             ObjectKind::Cylinder => &["base", "cap", "radius", "open"],
             ObjectKind::Cone => &["base", "cap", "base_radius", "cap_radius", "open"],
             ObjectKind::Disc => &["center", "normal", "radius", "hole_radius"],
+            ObjectKind::Torus => &["major_radius", "minor_radius"],
         };
         let present = [
             ("center", d.center.as_ref().map(Spanned::span)),
@@ -893,6 +896,8 @@ impl Check<'_, '_> {
             ("cap_radius", d.cap_radius.as_ref().map(Spanned::span)),
             ("open", d.open.as_ref().map(Spanned::span)),
             ("hole_radius", d.hole_radius.as_ref().map(Spanned::span)),
+            ("major_radius", d.major_radius.as_ref().map(Spanned::span)),
+            ("minor_radius", d.minor_radius.as_ref().map(Spanned::span)),
         ];
         for (key, span) in present {
             if let Some(span) = span.filter(|_| !allowed.contains(&key)) {
@@ -1179,6 +1184,25 @@ impl Check<'_, '_> {
                     radius,
                     hole_radius: hole,
                     transform: placed,
+                }))
+            }
+            ObjectKind::Torus => {
+                let big = self.number(&d.major_radius, 1.0, "major_radius", LENGTH);
+                let small = self.number(&d.minor_radius, 0.25, "minor_radius", LENGTH);
+                if small >= big {
+                    // A spindle torus (r ≥ R) intersects itself.
+                    self.error(
+                        d.minor_radius.as_ref().map_or(desc.span(), Spanned::span),
+                        format!(
+                            "{label}: `minor_radius` {small} must be less than `major_radius` {big}"
+                        ),
+                    );
+                    return None;
+                }
+                Shape::Torus(Box::new(Torus {
+                    major_radius: big,
+                    minor_radius: small,
+                    transform: transform?,
                 }))
             }
             ObjectKind::Polygon => {

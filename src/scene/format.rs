@@ -274,6 +274,8 @@ pub enum ObjectKind {
     Cone,
     /// Flat disc or ring.
     Disc,
+    /// Torus around the y axis, centred at the origin.
+    Torus,
 }
 
 impl ObjectKind {
@@ -288,6 +290,7 @@ impl ObjectKind {
             ObjectKind::Cylinder => "cylinder",
             ObjectKind::Cone => "cone",
             ObjectKind::Disc => "disc",
+            ObjectKind::Torus => "torus",
         }
     }
 }
@@ -337,6 +340,10 @@ pub struct ObjectDesc {
     pub open: Option<Spanned<bool>>,
     /// Disc: the radius of the hole in its middle.
     pub hole_radius: Option<Number>,
+    /// Torus: the radius of the tube's centre circle.
+    pub major_radius: Option<Number>,
+    /// Torus: the tube's radius.
+    pub minor_radius: Option<Number>,
     /// Transform, applied first to last.
     pub transform: Option<Vec<Spanned<TransformOp>>>,
 }

@@ -110,6 +110,8 @@ pub struct Census {
     pub cones: usize,
     /// Discs.
     pub discs: usize,
+    /// Tori.
+    pub tori: usize,
     /// Mesh placements (instances).
     pub mesh_instances: usize,
     /// Distinct meshes (each stored once however often placed).
@@ -141,6 +143,10 @@ impl Scene {
                 Shape::Cone(_) => {
                     c.cones += 1;
                     bytes += std::mem::size_of::<crate::geometry::Cone>() as u64;
+                }
+                Shape::Torus(_) => {
+                    c.tori += 1;
+                    bytes += std::mem::size_of::<crate::geometry::Torus>() as u64;
                 }
                 Shape::Disc(_) => {
                     c.discs += 1;
@@ -474,6 +480,11 @@ mod tests {
             shape("type = \"disc\"\nnormal = [0, 1, 0]\nradius = 2\nhole_radius = 1"),
             Shape::Disc(_)
         ));
+        let Shape::Torus(t) = shape("type = \"torus\"\nmajor_radius = 2\nminor_radius = 0.5")
+        else {
+            panic!("a torus")
+        };
+        assert_eq!((t.major_radius, t.minor_radius), (2.0, 0.5));
         let head = "[[objects]]\nmaterial = \"m\"\n";
         for (body, wanted) in [
             (
@@ -497,6 +508,11 @@ mod tests {
                 "less than `radius`",
             ),
             ("type = \"disc\"\nradius = 1", "needs `normal`"),
+            (
+                "type = \"torus\"\nmajor_radius = 1\nminor_radius = 1",
+                "less than `major_radius`",
+            ),
+            ("type = \"torus\"\nradius = 1", "does not apply to a torus"),
             (
                 "type = \"cylinder\"\nbase = [0, 0, 0]\ncap = [0, 1, 0]\nhole_radius = 1",
                 "does not apply to a cylinder",

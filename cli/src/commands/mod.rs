@@ -131,7 +131,7 @@ fn check(path: &Path, load: &LoadArgs) -> ExitCode {
                 std::io::stdout().lock(),
                 "{}: ok ({} objects, {} lights, {} materials)\n\
                  primitives: {} spheres, {} planes, {} polygons, {} boxes, {} cones and \
-                 cylinders, {} discs, {} mesh instances\n\
+                 cylinders, {} discs, {} tori, {} mesh instances\n\
                  meshes: {} stored ({} triangles), {} triangles placed\n\
                  textures: {} ({:.1} MiB)\n\
                  estimated memory: {:.1} MiB\n\
@@ -146,6 +146,7 @@ fn check(path: &Path, load: &LoadArgs) -> ExitCode {
                 c.boxes,
                 c.cones,
                 c.discs,
+                c.tori,
                 c.mesh_instances,
                 c.meshes,
                 c.triangles,
