@@ -1132,16 +1132,7 @@ impl Check<'_, '_> {
                     return None;
                 }
                 // Object space: the axis along z from 0 (base) to 1 (cap).
-                let f = crate::math::Frame::from_z(axis.normalize());
-                let local =
-                    DAffine3::from_mat3_translation(glam::DMat3::from_cols(f.x, f.y, axis), b);
-                let Some(placed) = Transform::from_affine(transform?.to_world * local) else {
-                    self.error(
-                        desc.span(),
-                        format!("{label}: its transform is singular or out of range"),
-                    );
-                    return None;
-                };
+                let placed = self.placed_along(transform?, axis, b, desc, label)?;
                 Shape::Cone(Box::new(Cone {
                     base_radius: r0,
                     cap_radius: r1,
@@ -1170,16 +1161,7 @@ impl Check<'_, '_> {
                     );
                     return None;
                 }
-                let f = crate::math::Frame::from_z(normal);
-                let local =
-                    DAffine3::from_mat3_translation(glam::DMat3::from_cols(f.x, f.y, f.z), center);
-                let Some(placed) = Transform::from_affine(transform?.to_world * local) else {
-                    self.error(
-                        desc.span(),
-                        format!("{label}: its transform is singular or out of range"),
-                    );
-                    return None;
-                };
+                let placed = self.placed_along(transform?, normal, center, desc, label)?;
                 Shape::Disc(Box::new(Disc {
                     radius,
                     hole_radius: hole,
@@ -1225,6 +1207,29 @@ impl Check<'_, '_> {
                 }
             }
         })
+    }
+
+    /// The object's own space of a shape built around an axis (cones,
+    /// discs): object z runs along `axis` (its length is object z's unit)
+    /// from `origin`, x and y across it, then the object's `transform`.
+    fn placed_along(
+        &mut self,
+        transform: Transform,
+        axis: DVec3,
+        origin: DVec3,
+        desc: &Spanned<ObjectDesc>,
+        label: &str,
+    ) -> Option<Transform> {
+        let f = crate::math::Frame::from_z(axis.normalize());
+        let local = DAffine3::from_mat3_translation(glam::DMat3::from_cols(f.x, f.y, axis), origin);
+        let placed = Transform::from_affine(transform.to_world * local);
+        if placed.is_none() {
+            self.error(
+                desc.span(),
+                format!("{label}: its transform is singular or out of range"),
+            );
+        }
+        placed
     }
 
     /// The mesh and material slots of the model `file`, loaded once however
