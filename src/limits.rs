@@ -47,6 +47,11 @@ pub const MAX_SCENE_FILE_BYTES: u64 = 1 << 30;
 /// file, a texture): a mesh of a hundred million triangles.
 pub const MAX_FILE_BYTES: u64 = 8 << 30;
 
+/// Deepest nesting of CSG operations (a CSG inside a CSG …): far past
+/// what a scene needs, and a bound on the recursion that builds and
+/// traces them.
+pub const MAX_CSG_DEPTH: usize = 64;
+
 /// The limits as the help text and docs state them.
 pub fn describe() -> String {
     format!(
@@ -54,7 +59,7 @@ pub fn describe() -> String {
          max_depth 1..={MAX_DEPTH}; threads 1..={MAX_THREADS}; animation frames 1..={MAX_FRAMES}; sphere-light samples 1..={MAX_LIGHT_SAMPLES}; coordinates within \
          ±{MAX_COORDINATE:e} and lengths, radii and scale factors in [{MIN_LENGTH:e}, {MAX_COORDINATE:e}] \
          (after transforms); colours, intensities and coefficients at most {MAX_VALUE:e}; \
-         {MAX_MODEL_PLACEMENTS} placements per model file; {} MiB of scene text per [[objects]] \
+         {MAX_MODEL_PLACEMENTS} placements per model file; CSG nested {MAX_CSG_DEPTH} deep; {} MiB of scene text per [[objects]] \
          table and outside them; {} MiB per scene file and {} MiB per file it reads; {DEFAULT_TEXTURE_MIB} MiB of textures unless --texture-memory \
          says otherwise.",
         MAX_TABLE_TEXT >> 20,

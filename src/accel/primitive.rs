@@ -2,8 +2,9 @@
 
 use glam::{DVec2, DVec3};
 
+use crate::geometry::span::Intervals;
 use crate::geometry::{
-    Aabb, Cone, Cuboid, Disc, Ellipsoid, MeshInstance, Plane, Polygon, ShapeHit, Sphere, Torus,
+    Aabb, Cone, Csg, Cuboid, Disc, Ellipsoid, MeshInstance, Plane, Polygon, ShapeHit, Sphere, Torus,
 };
 use crate::math::Frame;
 use crate::math::Ray;
@@ -32,6 +33,8 @@ pub enum Shape {
     Disc(Box<Disc>),
     /// A torus (its quartic solved by root isolation).
     Torus(Box<Torus>),
+    /// Constructive solid geometry over other shapes.
+    Csg(Box<Csg>),
 }
 
 /// A shape with its material.
@@ -57,7 +60,37 @@ impl Shape {
             Shape::Cone(c) => c.intersect(ray, t_min, t_max),
             Shape::Disc(d) => d.intersect(ray, t_min, t_max),
             Shape::Torus(t) => t.intersect(ray, t_min, t_max),
+            Shape::Csg(c) => c.intersect(ray, t_min, t_max),
         }
+    }
+
+    /// Whether the shape encloses a solid that CSG can combine: one with
+    /// an inside, told by [`inside`](Self::inside) (or, for meshes and
+    /// CSG, by their own interval queries). Polygons, discs, open
+    /// cylinders and cones and meshes with holes have none.
+    pub fn is_solid(&self) -> bool {
+        match self {
+            Shape::Polygon(_) | Shape::Disc(_) => false,
+            Shape::Cone(c) => !c.open,
+            Shape::Mesh(m) => m.mesh.is_closed(),
+            _ => true,
+        }
+    }
+
+    /// Where the whole line of `ray` is inside an analytic solid (see
+    /// `geometry/span.rs`); `None` for shapes without an inside and for
+    /// meshes and CSG, which answer with richer intervals of their own.
+    pub fn inside(&self, ray: &Ray) -> Option<Intervals> {
+        Some(match self {
+            Shape::Sphere(s) => s.inside(ray),
+            Shape::Ellipsoid(e) => e.inside(ray),
+            Shape::Plane(p) => p.inside(ray),
+            Shape::Cuboid(b) => b.inside(ray),
+            Shape::Cone(c) if !c.open => c.inside(ray),
+            Shape::Torus(t) => t.inside(ray),
+            Shape::Cone(_) | Shape::Polygon(_) | Shape::Disc(_) => return None,
+            Shape::Mesh(_) | Shape::Csg(_) => return None,
+        })
     }
 
     /// Whether the shape is hit with t in (t_min, t_max) (any-hit: meshes
@@ -97,6 +130,8 @@ impl Shape {
             Shape::Cone(c) => c.uv(point, hit.normal),
             Shape::Disc(d) => d.uv(point),
             Shape::Torus(t) => t.uv(point),
+            // The leaf hit gave its own.
+            Shape::Csg(_) => hit.uv,
         }
     }
 
@@ -113,6 +148,7 @@ impl Shape {
             Shape::Cone(c) => Some(c.bounds()),
             Shape::Disc(d) => Some(d.bounds()),
             Shape::Torus(t) => Some(t.bounds()),
+            Shape::Csg(c) => c.bounds(),
         }
     }
 }

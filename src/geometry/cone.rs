@@ -19,6 +19,7 @@
 use glam::{DVec2, DVec3};
 
 use super::cuboid::placed_bounds;
+use super::span::{Intervals, Surface, interval};
 use super::{Aabb, ShapeHit};
 use crate::math::{Ray, Transform, transcendental};
 
@@ -109,6 +110,86 @@ impl Cone {
             normal,
             ray.direction.dot(normal) < 0.0,
         ))
+    }
+
+    /// Where the whole line of `ray` is inside the closed solid: where the
+    /// side's quadratic is ≤ 0 (between its roots when a > 0; outside them
+    /// when a < 0, a ray steeper than the cone meeting both nappes)
+    /// within the slab 0 ≤ z ≤ 1. Each end takes the normal of the
+    /// constraint that bounds it there (the cap's on a tie: the rim).
+    pub fn inside(&self, ray: &Ray) -> Intervals {
+        let o = self.transform.to_object.transform_point3(ray.origin);
+        let d = self.transform.to_object.transform_vector3(ray.direction);
+        let inf = f64::INFINITY;
+        let (r0, k) = (self.base_radius, self.slope());
+        let ro = r0 + k * o.z;
+        let a = d.x * d.x + d.y * d.y - k * k * d.z * d.z;
+        let b = 2.0 * (o.x * d.x + o.y * d.y - k * d.z * ro);
+        let c = o.x * o.x + o.y * o.y - ro * ro;
+        let mut side: arrayvec::ArrayVec<(f64, f64), 2> = arrayvec::ArrayVec::new();
+        if a == 0.0 {
+            match b {
+                0.0 if c <= 0.0 => side.push((-inf, inf)),
+                0.0 => {}
+                b if b > 0.0 => side.push((-inf, -c / b)),
+                b => side.push((-c / b, inf)),
+            }
+        } else {
+            match quadratic_roots(a, b, c) {
+                None if a < 0.0 => side.push((-inf, inf)),
+                None => {}
+                Some((t0, t1)) if a > 0.0 => side.push((t0, t1)),
+                Some((t0, t1)) => {
+                    side.push((-inf, t0));
+                    side.push((t1, inf));
+                }
+            }
+        }
+        // The slab between the base (z = 0, normal −z) and the cap (z = 1).
+        let (slab, enter_cap, exit_cap) = if d.z == 0.0 {
+            if !(0.0..=1.0).contains(&o.z) {
+                return Intervals::new();
+            }
+            ((-inf, inf), DVec3::ZERO, DVec3::ZERO)
+        } else {
+            let (t0, t1) = (-o.z / d.z, (1.0 - o.z) / d.z);
+            if d.z > 0.0 {
+                ((t0, t1), -DVec3::Z, DVec3::Z)
+            } else {
+                ((t1, t0), DVec3::Z, -DVec3::Z)
+            }
+        };
+        let side_normal = |t: f64| {
+            let p = o + t * d;
+            DVec3::new(p.x, p.y, -k * (r0 + k * p.z))
+                .try_normalize()
+                .unwrap_or(DVec3::Z * k.signum())
+        };
+        let mut out = Intervals::new();
+        for (s0, s1) in side {
+            let enter = if slab.0 >= s0 {
+                (slab.0, enter_cap)
+            } else {
+                (s0, side_normal(s0))
+            };
+            let exit = if slab.1 <= s1 {
+                (slab.1, exit_cap)
+            } else {
+                (s1, side_normal(s1))
+            };
+            let surface = |(t, n): (f64, DVec3)| Surface {
+                t,
+                normal: if t.is_finite() {
+                    self.transform.normal(n)
+                } else {
+                    DVec3::ZERO
+                },
+            };
+            if let Some(i) = interval(surface(enter), surface(exit)) {
+                out.push(i);
+            }
+        }
+        out
     }
 
     /// Whether the object-space point lies inside the closed solid.

@@ -12,6 +12,7 @@
 
 use glam::{DVec2, DVec3};
 
+use super::span::{Intervals, Surface, interval};
 use super::{Aabb, ShapeHit};
 use crate::math::{Ray, Transform};
 
@@ -79,6 +80,31 @@ impl Cuboid {
             normal,
             ray.direction.dot(normal) < 0.0,
         ))
+    }
+
+    /// Where the whole line of `ray` is inside: the slab interval.
+    pub fn inside(&self, ray: &Ray) -> Intervals {
+        let origin = self.transform.to_object.transform_point3(ray.origin);
+        let direction = self.transform.to_object.transform_vector3(ray.direction);
+        let mut out = Intervals::new();
+        if let Some(((t0, a0), (t1, a1))) = slab_interval(origin, direction, self.min, self.max) {
+            let face = |axis: usize, sign: f64| {
+                let mut n = DVec3::ZERO;
+                n[axis] = sign;
+                self.transform.normal(n)
+            };
+            out.extend(interval(
+                Surface {
+                    t: t0,
+                    normal: face(a0, -direction[a0].signum()),
+                },
+                Surface {
+                    t: t1,
+                    normal: face(a1, direction[a1].signum()),
+                },
+            ));
+        }
+        out
     }
 
     /// Texture coordinates at the world point `point` (see the module).

@@ -110,6 +110,17 @@ impl MeshInstance {
         self.mesh.any_hit_packet(&local[..rays.len()], t_min, t_max)
     }
 
+    /// Where the whole line of `ray` is inside the (closed) mesh, as
+    /// (enter, exit) hits in world space; see [`Mesh::inside`].
+    pub fn inside(&self, ray: &Ray) -> Vec<(ShapeHit, ShapeHit)> {
+        let (origin, direction) = self.local(ray);
+        self.mesh
+            .inside(origin, direction)
+            .into_iter()
+            .map(|(a, b)| (self.world_hit(ray, a), self.world_hit(ray, b)))
+            .collect()
+    }
+
     /// World-space bounds.
     pub fn bounds(&self) -> Aabb {
         let b = self.mesh.bounds();

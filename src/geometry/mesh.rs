@@ -188,6 +188,86 @@ impl Mesh {
         })
     }
 
+    /// Whether the mesh is a closed, consistently oriented surface (every
+    /// edge shared by exactly two triangles that run it in opposite
+    /// directions, vertices taken as equal where their positions are, so
+    /// seams of split normals or texture coordinates do not open it):
+    /// what crossing parity needs to tell inside from outside.
+    pub fn is_closed(&self) -> bool {
+        use std::collections::HashMap;
+        let mut welded: HashMap<[u64; 3], u32> = HashMap::new();
+        let ids: Vec<u32> = self
+            .positions
+            .iter()
+            .map(|p| {
+                let next = welded.len() as u32;
+                *welded.entry(p.to_array().map(f64::to_bits)).or_insert(next)
+            })
+            .collect();
+        // Each undirected edge: +1 for a <, −1 for a > direction, and a count.
+        let mut edges: HashMap<(u32, u32), (i32, u32)> = HashMap::new();
+        for t in &self.triangles {
+            let v = t.map(|i| ids[i as usize]);
+            for (a, b) in [(v[0], v[1]), (v[1], v[2]), (v[2], v[0])] {
+                if a == b {
+                    continue;
+                }
+                let e = edges.entry((a.min(b), a.max(b))).or_default();
+                e.0 += if a < b { 1 } else { -1 };
+                e.1 += 1;
+            }
+        }
+        !edges.is_empty() && edges.values().all(|&(dir, count)| count == 2 && dir == 0)
+    }
+
+    /// Where the whole line `origin + t·direction` is inside the (closed)
+    /// mesh, as (enter, exit) hits in ascending order: the Jordan curve
+    /// theorem's crossing parity along the line. Every triangle the line
+    /// meets is found (t from −∞ to +∞); hits at the same t (the line
+    /// through a shared edge or vertex) are one crossing when the
+    /// triangles all face the same way along the line, and none when they
+    /// do not (the line grazes a fold). Ties are ordered by the mesh's own
+    /// order, so the answer is the same however the tree is visited.
+    pub fn inside(&self, origin: DVec3, direction: DVec3) -> Vec<(MeshHit, MeshHit)> {
+        let ray = WatertightRay::new(origin, direction);
+        let mut hits: Vec<(f64, usize, TriangleHit)> = Vec::new();
+        self.bvh.visit(
+            |b| super::cuboid::slab_interval(origin, direction, b.min, b.max).is_some(),
+            |position| {
+                let [a, b, c] = self.corners(position);
+                if let Some(h) = triangle_hit(&ray, a, b, c, f64::NEG_INFINITY, f64::INFINITY) {
+                    hits.push((h.t, position, h));
+                }
+                true
+            },
+        );
+        hits.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+        let facing = |position: usize| {
+            let [a, b, c] = self.corners(position);
+            (b - a).cross(c - a).dot(direction)
+        };
+        let mut out = Vec::new();
+        let mut entered: Option<MeshHit> = None;
+        let mut i = 0;
+        while i < hits.len() {
+            let t = hits[i].0;
+            let end = i + hits[i..].iter().take_while(|h| h.0 == t).count();
+            let group = &hits[i..end];
+            let crossing =
+                group.iter().all(|h| facing(h.1) > 0.0) || group.iter().all(|h| facing(h.1) < 0.0);
+            if crossing {
+                let (_, position, h) = hits[i];
+                let surface = self.surface(position, h.barycentric, h.t);
+                match entered.take() {
+                    None => entered = Some(surface),
+                    Some(enter) => out.push((enter, surface)),
+                }
+            }
+            i = end;
+        }
+        out
+    }
+
     /// Number of triangles.
     pub fn triangle_count(&self) -> usize {
         self.triangles.len()

@@ -3,6 +3,7 @@
 
 pub mod aabb;
 pub mod cone;
+pub mod csg;
 pub mod cuboid;
 pub mod disc;
 pub mod hit;
@@ -10,12 +11,14 @@ pub mod instance;
 pub mod mesh;
 pub mod plane;
 pub mod polygon;
+pub mod span;
 pub mod sphere;
 pub mod torus;
 pub mod triangle;
 
 pub use aabb::Aabb;
 pub use cone::Cone;
+pub use csg::{Csg, CsgChild, CsgOp};
 pub use cuboid::Cuboid;
 pub use disc::Disc;
 pub use hit::{Hit, ShapeHit};

@@ -3,6 +3,7 @@
 use glam::DVec3;
 
 use super::ShapeHit;
+use super::span::{Interval, Intervals, Surface};
 use crate::math::Ray;
 
 /// Below this |n·D| (cosine between the ray and the plane) the ray counts as
@@ -63,6 +64,45 @@ impl Plane {
     #[inline]
     pub fn signed_distance(&self, p: DVec3) -> f64 {
         self.normal.dot(p) - self.distance
+    }
+
+    /// Where the whole line of `ray` lies in the half-space behind the
+    /// plane, n·p < d (POV-Ray's inside): from −∞ to the plane when the
+    /// ray travels along the normal, from the plane on when against it;
+    /// all or nothing when it runs parallel.
+    pub fn inside(&self, ray: &Ray) -> Intervals {
+        let n_dot_d = self.normal.dot(ray.direction);
+        let behind = self.signed_distance(ray.origin);
+        let (lo, hi) = (
+            Surface::at_infinity(f64::NEG_INFINITY),
+            Surface::at_infinity(f64::INFINITY),
+        );
+        let mut out = Intervals::new();
+        if n_dot_d.abs() < PARALLEL_COSINE {
+            if behind < 0.0 {
+                out.push(Interval {
+                    enter: lo,
+                    exit: hi,
+                });
+            }
+            return out;
+        }
+        let at = Surface {
+            t: -behind / n_dot_d,
+            normal: self.normal,
+        };
+        out.push(if n_dot_d > 0.0 {
+            Interval {
+                enter: lo,
+                exit: at,
+            }
+        } else {
+            Interval {
+                enter: at,
+                exit: hi,
+            }
+        });
+        out
     }
 
     /// Intersects `ray`; see [`plane_hit`].

@@ -2,6 +2,7 @@
 
 use glam::DVec3;
 
+use super::span::{Intervals, Surface, interval};
 use super::{Aabb, ShapeHit};
 use crate::math::{Ray, Transform};
 
@@ -129,6 +130,19 @@ impl Sphere {
             .is_some()
     }
 
+    /// Where the whole line of `ray` is inside: between the two roots.
+    pub fn inside(&self, ray: &Ray) -> Intervals {
+        let mut out = Intervals::new();
+        if let Some((t0, t1)) = sphere_roots(ray.origin, ray.direction, self.center, self.radius) {
+            let at = |t: f64| Surface {
+                t,
+                normal: (ray.at(t) - self.center) / self.radius,
+            };
+            out.extend(interval(at(t0), at(t1)));
+        }
+        out
+    }
+
     /// The bounding box.
     pub fn bounds(&self) -> Aabb {
         Aabb {
@@ -162,6 +176,23 @@ impl Ellipsoid {
             normal,
             ray.direction.dot(normal) < 0.0,
         ))
+    }
+
+    /// Where the whole line of `ray` is inside: between the roots of the
+    /// unit sphere in object space.
+    pub fn inside(&self, ray: &Ray) -> Intervals {
+        let to_object = &self.transform.to_object;
+        let origin = to_object.transform_point3(ray.origin);
+        let direction = to_object.transform_vector3(ray.direction);
+        let mut out = Intervals::new();
+        if let Some((t0, t1)) = sphere_roots(origin, direction, DVec3::ZERO, 1.0) {
+            let at = |t: f64| Surface {
+                t,
+                normal: self.transform.normal(origin + t * direction),
+            };
+            out.extend(interval(at(t0), at(t1)));
+        }
+        out
     }
 
     /// The bounding box: along world axis i the half extent is the length of

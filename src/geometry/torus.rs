@@ -27,6 +27,7 @@ use arrayvec::ArrayVec;
 use glam::{DVec2, DVec3};
 
 use super::cuboid::placed_bounds;
+use super::span::{Intervals, classify_between_roots};
 use super::{Aabb, ShapeHit};
 use crate::math::{Ray, Transform, transcendental};
 
@@ -55,6 +56,12 @@ impl Torus {
     /// Every crossing of the object-space ray (o, d) as a parameter of
     /// that ray, ascending.
     pub fn crossings(&self, o: DVec3, d: DVec3) -> ArrayVec<f64, 4> {
+        self.roots(o, d, true)
+    }
+
+    /// The roots along (o, d), ascending: those where f changes sign, and
+    /// with `touches` the double roots of a grazing ray too.
+    fn roots(&self, o: DVec3, d: DVec3, touches: bool) -> ArrayVec<f64, 4> {
         let mut out = ArrayVec::new();
         let len = d.length();
         if len == 0.0 || !len.is_finite() {
@@ -114,7 +121,7 @@ impl Torus {
             }
             // A touch at an inner critical point: a double root, kept once.
             let s = w[1];
-            if i + 2 < critical.len() && f(s).abs() <= 1e-13 * scale {
+            if touches && i + 2 < critical.len() && f(s).abs() <= 1e-13 * scale {
                 keep(s, &mut roots);
             }
         }
@@ -139,6 +146,20 @@ impl Torus {
             normal,
             ray.direction.dot(normal) < 0.0,
         ))
+    }
+
+    /// Where the whole line of `ray` is inside the tube: between the roots
+    /// where f changes sign (a grazing touch encloses nothing), each stretch
+    /// judged by the sign of f at its middle.
+    pub fn inside(&self, ray: &Ray) -> Intervals {
+        let o = self.transform.to_object.transform_point3(ray.origin);
+        let d = self.transform.to_object.transform_vector3(ray.direction);
+        let roots = self.roots(o, d, false);
+        classify_between_roots(
+            &roots,
+            |t| self.implicit(o + t * d) < 0.0,
+            |t| self.transform.normal(self.object_normal(o + t * d)),
+        )
     }
 
     /// The outward normal at an object-space point on the surface.

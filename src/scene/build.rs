@@ -16,12 +16,39 @@ use super::models::{ModelCamera, ModelProjection, load_model};
 use super::resources::{LoadOptions, Resources};
 use super::{Names, Scene};
 
-/// How messages name object `index`.
-fn label_of(d: &ObjectDesc, index: usize) -> String {
+/// How messages name the object at `path` (`objects[3]`,
+/// `objects[3].children[0]`).
+fn label_of(d: &ObjectDesc, path: &str) -> String {
+    // A deep CSG path keeps its first and last steps.
+    let steps: Vec<&str> = path.split('.').collect();
+    let short;
+    let path = if steps.len() > 5 {
+        short = format!(
+            "{}.{} … {} ({} deep)",
+            steps[0],
+            steps[1],
+            steps[steps.len() - 1],
+            steps.len() - 1
+        );
+        short.as_str()
+    } else {
+        path
+    };
     match &d.name {
-        Some(n) => format!("object `{n}` (objects[{index}])"),
-        None => format!("objects[{index}]"),
+        Some(n) => format!("object `{n}` ({path})"),
+        None => path.to_string(),
     }
+}
+
+/// What a CSG hands down to its children: its placement and material,
+/// how deep they sit, and whether they are operands of a set operation
+/// (rather than objects of their own, as a top-level union's are).
+#[derive(Clone, Copy, Debug, Default)]
+struct Parent {
+    transform: Option<Transform>,
+    material: Option<u32>,
+    depth: usize,
+    in_csg: bool,
 }
 
 /// A model file, read and built once however often it is placed.
@@ -49,7 +76,8 @@ struct ChosenCamera {
 use crate::accel::{Aggregate, Primitive, Shape};
 use crate::camera::{Camera, FovAxis, Projection};
 use crate::geometry::{
-    Cone, Cuboid, Disc, Ellipsoid, Mesh, MeshInstance, Plane, Polygon, Sphere, Torus,
+    Cone, Csg, CsgChild, CsgOp, Cuboid, Disc, Ellipsoid, Mesh, MeshInstance, Plane, Polygon,
+    Sphere, Torus,
 };
 use crate::lights::{Light, LightShape};
 use crate::limits;
@@ -812,15 +840,41 @@ impl Check<'_, '_> {
         materials: &BTreeMap<&str, u32>,
         unparsed: &BTreeSet<String>,
     ) -> Vec<Primitive> {
+        let path = format!("objects[{index}]");
+        self.object_in(&path, desc, materials, unparsed, &Parent::default())
+    }
+
+    /// The primitives of the object at `path` (`objects[3]`,
+    /// `objects[3].children[1]`), placed under `parent`.
+    fn object_in(
+        &mut self,
+        path: &str,
+        desc: &Spanned<ObjectDesc>,
+        materials: &BTreeMap<&str, u32>,
+        unparsed: &BTreeSet<String>,
+        parent: &Parent,
+    ) -> Vec<Primitive> {
         let d = desc.get_ref();
         let kind = *d.kind.get_ref();
-        let label = label_of(d, index);
+        let label = label_of(d, path);
         self.reject_foreign_keys(d, kind, &label);
+        if let Some(inverse) = d.inverse.as_ref().filter(|_| !parent.in_csg) {
+            self.error(
+                inverse.span(),
+                format!(
+                    "{label}: `inverse` applies to a part of an intersection, difference or                      merge (a solid alone is drawn the same either way)"
+                ),
+            );
+        }
+        if let Some(op) = kind.csg() {
+            return self.csg_object(op, path, &label, desc, materials, unparsed, parent);
+        }
         if kind == ObjectKind::Mesh {
-            return self.mesh_object(d, desc, &label, materials, unparsed);
+            return self.mesh_object(d, desc, &label, materials, unparsed, parent.transform);
         }
         let material = match &d.material {
             Some(name) => self.material_named(name, materials, unparsed, &label),
+            None if parent.material.is_some() => parent.material,
             None => {
                 self.error(
                     desc.span(),
@@ -830,6 +884,7 @@ impl Check<'_, '_> {
             }
         };
         let transform = self.transform(d.transform.as_deref().unwrap_or_default(), &label);
+        let transform = transform.and_then(|t| self.under(parent, t, desc, &label));
         let errors_before = self.diags.len();
         let Some(shape) = self.analytic_shape(kind, d, desc, &label, transform) else {
             return Vec::new();
@@ -842,6 +897,177 @@ impl Check<'_, '_> {
             .map(|material| Primitive { shape, material })
             .into_iter()
             .collect()
+    }
+
+    /// `own` placed under the parent's transform (parent after own).
+    fn under(
+        &mut self,
+        parent: &Parent,
+        own: Transform,
+        desc: &Spanned<ObjectDesc>,
+        label: &str,
+    ) -> Option<Transform> {
+        let Some(outer) = &parent.transform else {
+            return Some(own);
+        };
+        let placed = Transform::from_affine(outer.to_world * own.to_world);
+        if placed.is_none() {
+            self.error(
+                desc.span(),
+                format!("{label}: its transform times its CSG's is singular or out of range"),
+            );
+        }
+        placed
+    }
+
+    /// A `union`, `intersection`, `difference` or `merge`: a union not
+    /// inside another operation places its children as objects of their
+    /// own (every surface kept, as POV-Ray's union); any other becomes one
+    /// CSG primitive over its children, each of which must be a solid.
+    #[allow(clippy::too_many_arguments)]
+    fn csg_object(
+        &mut self,
+        op: CsgOp,
+        path: &str,
+        label: &str,
+        desc: &Spanned<ObjectDesc>,
+        materials: &BTreeMap<&str, u32>,
+        unparsed: &BTreeSet<String>,
+        parent: &Parent,
+    ) -> Vec<Primitive> {
+        let d = desc.get_ref();
+        if parent.depth >= limits::MAX_CSG_DEPTH {
+            self.error(
+                desc.span(),
+                format!(
+                    "{label}: CSG nested more than {} deep; flatten it (a union of unions \
+                     is one union)",
+                    limits::MAX_CSG_DEPTH
+                ),
+            );
+            return Vec::new();
+        }
+        let children = d.children.as_deref().unwrap_or_default();
+        if children.is_empty() {
+            self.error(
+                desc.span(),
+                format!(
+                    "{label}: a {} needs `children` ([[objects.children]] tables, at least one)",
+                    op.name()
+                ),
+            );
+            return Vec::new();
+        }
+        let material = match &d.material {
+            Some(name) => self.material_named(name, materials, unparsed, label),
+            None => parent.material,
+        };
+        let Some(transform) = self.transform(d.transform.as_deref().unwrap_or_default(), label)
+        else {
+            return Vec::new();
+        };
+        let has_transform = d.transform.as_ref().is_some_and(|t| !t.is_empty());
+        let transform = if has_transform {
+            match self.under(parent, transform, desc, label) {
+                Some(t) => Some(t),
+                None => return Vec::new(),
+            }
+        } else {
+            parent.transform
+        };
+        let flatten = op == CsgOp::Union && !parent.in_csg;
+        let inner = Parent {
+            transform,
+            material,
+            depth: parent.depth + 1,
+            in_csg: !flatten,
+        };
+        let mut primitives = Vec::new();
+        let mut operands = Vec::with_capacity(if flatten { 0 } else { children.len() });
+        for (i, child) in children.iter().enumerate() {
+            let child_path = format!("{path}.children[{i}]");
+            let built = self.object_in(&child_path, child, materials, unparsed, &inner);
+            if flatten {
+                primitives.extend(built);
+                continue;
+            }
+            let c = child.get_ref();
+            let inverse = c.inverse.as_ref().is_some_and(|v| *v.get_ref());
+            let child_label = label_of(c, &child_path);
+            let Some(operand) = self.operand(built, inverse, child, &child_label, op) else {
+                continue;
+            };
+            operands.push(operand);
+        }
+        if flatten || operands.len() != children.len() {
+            return primitives;
+        }
+        let csg = Csg::new(op, operands);
+        let material = csg.children()[0].material;
+        vec![Primitive {
+            shape: Shape::Csg(Box::new(csg)),
+            material,
+        }]
+    }
+
+    /// One operand of a CSG from what its object built: several primitives
+    /// (a model of several meshes) become their union; each must enclose
+    /// a solid.
+    fn operand(
+        &mut self,
+        mut built: Vec<Primitive>,
+        inverse: bool,
+        desc: &Spanned<ObjectDesc>,
+        label: &str,
+        op: CsgOp,
+    ) -> Option<CsgChild> {
+        let kind = desc.get_ref().kind.get_ref();
+        for p in &built {
+            if !p.shape.is_solid() {
+                let why = match &p.shape {
+                    Shape::Mesh(_) => "its mesh is not closed (every edge must join exactly two \
+                         triangles, wound the same way), so it has no inside"
+                        .to_string(),
+                    Shape::Cone(_) => format!("an open {} has no inside", kind.name()),
+                    _ => format!("a {} has no inside", kind.name()),
+                };
+                self.error(
+                    desc.span(),
+                    format!(
+                        "{label}: a part of a {} must be a closed solid, but {why}",
+                        op.name()
+                    ),
+                );
+                return None;
+            }
+        }
+        let (shape, material) = match built.len() {
+            0 => return None,
+            1 => {
+                let p = built.pop()?;
+                (p.shape, p.material)
+            }
+            _ => {
+                let material = built[0].material;
+                let parts = built
+                    .into_iter()
+                    .map(|p| CsgChild {
+                        shape: p.shape,
+                        material: p.material,
+                        inverse: false,
+                    })
+                    .collect();
+                (
+                    Shape::Csg(Box::new(Csg::new(CsgOp::Union, parts))),
+                    material,
+                )
+            }
+        };
+        Some(CsgChild {
+            shape,
+            material,
+            inverse,
+        })
     }
 
     /// Whether the placed shape lies within the supported range (its
@@ -877,6 +1103,10 @@ impl Check<'_, '_> {
             ObjectKind::Cone => &["base", "cap", "base_radius", "cap_radius", "open"],
             ObjectKind::Disc => &["center", "normal", "radius", "hole_radius"],
             ObjectKind::Torus => &["major_radius", "minor_radius"],
+            ObjectKind::Union
+            | ObjectKind::Intersection
+            | ObjectKind::Difference
+            | ObjectKind::Merge => &["children"],
         };
         let present = [
             ("center", d.center.as_ref().map(Spanned::span)),
@@ -898,6 +1128,13 @@ impl Check<'_, '_> {
             ("hole_radius", d.hole_radius.as_ref().map(Spanned::span)),
             ("major_radius", d.major_radius.as_ref().map(Spanned::span)),
             ("minor_radius", d.minor_radius.as_ref().map(Spanned::span)),
+            (
+                "children",
+                d.children
+                    .as_ref()
+                    .and_then(|c| c.first())
+                    .map(Spanned::span),
+            ),
         ];
         for (key, span) in present {
             if let Some(span) = span.filter(|_| !allowed.contains(&key)) {
@@ -918,6 +1155,7 @@ impl Check<'_, '_> {
         label: &str,
         materials: &BTreeMap<&str, u32>,
         unparsed: &BTreeSet<String>,
+        outer: Option<Transform>,
     ) -> Vec<Primitive> {
         let material = d
             .material
@@ -932,7 +1170,24 @@ impl Check<'_, '_> {
         let (Some(transform), Some(loaded)) = (transform, self.model(file, label)) else {
             return Vec::new();
         };
-        let object = has_transform.then_some(transform);
+        // Under a CSG's transform, the object's own first.
+        let object = match (has_transform.then_some(transform), outer) {
+            (own, None) => own,
+            (None, Some(o)) => Some(o),
+            (Some(own), Some(o)) => {
+                let placed = Transform::from_affine(o.to_world * own.to_world);
+                if placed.is_none() {
+                    self.error(
+                        desc.span(),
+                        format!(
+                            "{label}: its transform times its CSG's is singular or out of range"
+                        ),
+                    );
+                    return Vec::new();
+                }
+                placed
+            }
+        };
         let light_scale = self.number(&d.light_scale, 1.0, "light_scale", VALUE);
         self.place_model_extras(
             &loaded,
@@ -1024,7 +1279,11 @@ impl Check<'_, '_> {
         transform: Option<Transform>,
     ) -> Option<Shape> {
         Some(match kind {
-            ObjectKind::Mesh => return None,
+            ObjectKind::Mesh
+            | ObjectKind::Union
+            | ObjectKind::Intersection
+            | ObjectKind::Difference
+            | ObjectKind::Merge => return None,
             ObjectKind::Sphere => {
                 let center = d
                     .center

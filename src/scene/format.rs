@@ -276,6 +276,14 @@ pub enum ObjectKind {
     Disc,
     /// Torus around the y axis, centred at the origin.
     Torus,
+    /// CSG: every child (POV-Ray's `union`).
+    Union,
+    /// CSG: where all children are.
+    Intersection,
+    /// CSG: the first child less the others.
+    Difference,
+    /// CSG: the union without inner surfaces.
+    Merge,
 }
 
 impl ObjectKind {
@@ -291,6 +299,22 @@ impl ObjectKind {
             ObjectKind::Cone => "cone",
             ObjectKind::Disc => "disc",
             ObjectKind::Torus => "torus",
+            ObjectKind::Union => "union",
+            ObjectKind::Intersection => "intersection",
+            ObjectKind::Difference => "difference",
+            ObjectKind::Merge => "merge",
+        }
+    }
+
+    /// The CSG operation this kind names, if it names one.
+    pub fn csg(self) -> Option<crate::geometry::CsgOp> {
+        use crate::geometry::CsgOp;
+        match self {
+            ObjectKind::Union => Some(CsgOp::Union),
+            ObjectKind::Intersection => Some(CsgOp::Intersection),
+            ObjectKind::Difference => Some(CsgOp::Difference),
+            ObjectKind::Merge => Some(CsgOp::Merge),
+            _ => None,
         }
     }
 }
@@ -346,6 +370,10 @@ pub struct ObjectDesc {
     pub minor_radius: Option<Number>,
     /// Transform, applied first to last.
     pub transform: Option<Vec<Spanned<TransformOp>>>,
+    /// CSG: the operands (`[[objects.children]]`), any kind of object.
+    pub children: Option<Vec<Spanned<ObjectDesc>>>,
+    /// Inside a CSG: the complement of the solid (POV-Ray's `inverse`).
+    pub inverse: Option<Spanned<bool>>,
 }
 
 /// One step of an object transform.

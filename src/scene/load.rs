@@ -130,6 +130,12 @@ fn report_syntax(errors: Vec<toml::de::Error>, diags: &mut Diagnostics) {
                 "duplicate key `{}`: each key may appear once in a table",
                 diags.text_at(span.clone(), 60).trim()
             ),
+            // The TOML reader's own bound on nested tables and arrays.
+            m if m.contains("recurs") => format!(
+                "tables nested too deep for the TOML reader ({m}); CSG written as \
+                 [[objects.children]] tables may nest {} deep, fewer when written inline",
+                crate::limits::MAX_CSG_DEPTH
+            ),
             m => m.to_string(),
         };
         diags.error(span, message);

@@ -120,54 +120,79 @@ pub struct Census {
     pub triangles: usize,
     /// Triangles placed (over instances).
     pub placed_triangles: usize,
+    /// CSG operations (each node of a CSG tree; a top-level union's
+    /// children are placed as objects of their own and not counted here).
+    pub csg: usize,
     /// Estimated bytes of geometry, acceleration structures and textures.
     pub memory_bytes: u64,
+}
+
+/// Adds `shape` (and, for CSG, its operands) to the census.
+fn count_shape(
+    shape: &crate::accel::Shape,
+    c: &mut Census,
+    bytes: &mut u64,
+    seen: &mut Vec<*const crate::geometry::Mesh>,
+) {
+    use crate::accel::Shape;
+    use std::mem::size_of;
+    match shape {
+        Shape::Sphere(_) | Shape::Ellipsoid(_) => c.spheres += 1,
+        Shape::Plane(_) => c.planes += 1,
+        Shape::Cuboid(_) => {
+            c.boxes += 1;
+            *bytes += size_of::<crate::geometry::Cuboid>() as u64;
+        }
+        Shape::Cone(_) => {
+            c.cones += 1;
+            *bytes += size_of::<crate::geometry::Cone>() as u64;
+        }
+        Shape::Torus(_) => {
+            c.tori += 1;
+            *bytes += size_of::<crate::geometry::Torus>() as u64;
+        }
+        Shape::Disc(_) => {
+            c.discs += 1;
+            *bytes += size_of::<crate::geometry::Disc>() as u64;
+        }
+        Shape::Polygon(poly) => {
+            c.polygons += 1;
+            *bytes += (poly.vertices().len() * 40) as u64;
+        }
+        Shape::Mesh(m) => {
+            c.mesh_instances += 1;
+            c.placed_triangles += m.mesh.triangle_count();
+            let ptr = std::sync::Arc::as_ptr(&m.mesh);
+            if !seen.contains(&ptr) {
+                seen.push(ptr);
+                c.meshes += 1;
+                c.triangles += m.mesh.triangle_count();
+                *bytes += m.mesh.memory_bytes() as u64;
+            }
+        }
+        Shape::Csg(csg) => {
+            c.csg += 1;
+            let n = csg.children().len() as u64;
+            // The node, its operands and their boxes (and the tree over
+            // them when there are many).
+            *bytes += size_of::<crate::geometry::Csg>() as u64
+                + n * (size_of::<crate::geometry::CsgChild>() as u64 + 56 + 64);
+            for child in csg.children() {
+                count_shape(&child.shape, c, bytes, seen);
+            }
+        }
+    }
 }
 
 impl Scene {
     /// Counts the scene's primitives by kind, its meshes and triangles, and
     /// estimates its memory.
     pub fn census(&self) -> Census {
-        use crate::accel::Shape;
         let mut c = Census::default();
         let mut seen: Vec<*const crate::geometry::Mesh> = Vec::new();
         let mut bytes = std::mem::size_of_val(self.aggregate.primitives()) as u64;
         for p in self.aggregate.primitives() {
-            match &p.shape {
-                Shape::Sphere(_) | Shape::Ellipsoid(_) => c.spheres += 1,
-                Shape::Plane(_) => c.planes += 1,
-                Shape::Cuboid(_) => {
-                    c.boxes += 1;
-                    bytes += std::mem::size_of::<crate::geometry::Cuboid>() as u64;
-                }
-                Shape::Cone(_) => {
-                    c.cones += 1;
-                    bytes += std::mem::size_of::<crate::geometry::Cone>() as u64;
-                }
-                Shape::Torus(_) => {
-                    c.tori += 1;
-                    bytes += std::mem::size_of::<crate::geometry::Torus>() as u64;
-                }
-                Shape::Disc(_) => {
-                    c.discs += 1;
-                    bytes += std::mem::size_of::<crate::geometry::Disc>() as u64;
-                }
-                Shape::Polygon(poly) => {
-                    c.polygons += 1;
-                    bytes += (poly.vertices().len() * 40) as u64;
-                }
-                Shape::Mesh(m) => {
-                    c.mesh_instances += 1;
-                    c.placed_triangles += m.mesh.triangle_count();
-                    let ptr = std::sync::Arc::as_ptr(&m.mesh);
-                    if !seen.contains(&ptr) {
-                        seen.push(ptr);
-                        c.meshes += 1;
-                        c.triangles += m.mesh.triangle_count();
-                        bytes += m.mesh.memory_bytes() as u64;
-                    }
-                }
-            }
+            count_shape(&p.shape, &mut c, &mut bytes, &mut seen);
         }
         // The top-level tree: about two nodes' worth per primitive.
         bytes += 64 * self.aggregate.primitives().len() as u64;

@@ -131,7 +131,7 @@ fn check(path: &Path, load: &LoadArgs) -> ExitCode {
                 std::io::stdout().lock(),
                 "{}: ok ({} objects, {} lights, {} materials)\n\
                  primitives: {} spheres, {} planes, {} polygons, {} boxes, {} cones and \
-                 cylinders, {} discs, {} tori, {} mesh instances\n\
+                 cylinders, {} discs, {} tori, {} mesh instances, {} CSG operations\n\
                  meshes: {} stored ({} triangles), {} triangles placed\n\
                  textures: {} ({:.1} MiB)\n\
                  estimated memory: {:.1} MiB\n\
@@ -148,6 +148,7 @@ fn check(path: &Path, load: &LoadArgs) -> ExitCode {
                 c.discs,
                 c.tori,
                 c.mesh_instances,
+                c.csg,
                 c.meshes,
                 c.triangles,
                 c.placed_triangles,

@@ -1,0 +1,642 @@
+//! Constructive solid geometry (POV-Ray's `union`, `intersection`,
+//! `difference`, `merge` and `inverse`) by Roth's ray casting (1982):
+//! each child says along which intervals of the ray's whole line it is
+//! inside (`span.rs`; spheres, boxes, cones, tori, half-spaces, closed
+//! meshes and CSG itself); the operation combines those interval lists as
+//! sets, and the ray's hit is the first end of a combined interval in its
+//! range. Nothing here knows a shape: it asks its children only for their
+//! intervals, bounds and texture coordinates.
+//!
+//! - union and merge: A ∪ B ∪ …; intersection: A ∩ B ∩ …; difference:
+//!   A ∩ ¬B ∩ ¬C …; `inverse`: the complement ¬A (its surfaces face in).
+//!   At the top of a scene a union's children are placed as separate
+//!   objects, every surface of each kept (POV-Ray's union, inner surfaces
+//!   included); inside another operation a union is the set union, like
+//!   merge (only the transparent case can tell them apart).
+//! - Intervals are closed sets. A surface shared by two children (two
+//!   boxes face to face, a hole cut flush with a face) belongs to the set's
+//!   boundary only where the set changes there, and then it is the earlier
+//!   child's; an interval of zero length after an operation is dropped.
+//!   So coincident faces neither leave a sliver nor flicker between
+//!   children: the answer is a function of the children's intervals
+//!   alone, the same for every ray order, thread and SIMD path.
+//! - The normal at an end is the outward normal of the combined solid
+//!   (a child's, turned round where the child is subtracted or inverted),
+//!   so refraction sees the CSG's boundary: a glass merge has no inner
+//!   surface, an air bubble cut from a block is entered as air.
+
+use glam::{DVec2, DVec3};
+use smallvec::SmallVec;
+
+use super::cuboid::slab_interval;
+use super::span::Surface;
+use super::{Aabb, ShapeHit};
+use crate::accel::Shape;
+use crate::accel::bvh::Bvh;
+use crate::math::Ray;
+
+/// Children beyond this many are found through a BVH of their boxes
+/// rather than one by one.
+const INDEXED_CHILDREN: usize = 8;
+
+/// The four operations.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CsgOp {
+    /// Every child's solid; inside another operation, the set union.
+    Union,
+    /// Where all children are.
+    Intersection,
+    /// The first child less all the others.
+    Difference,
+    /// The set union, without the surfaces inside it.
+    Merge,
+}
+
+impl CsgOp {
+    /// The name as written in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            CsgOp::Union => "union",
+            CsgOp::Intersection => "intersection",
+            CsgOp::Difference => "difference",
+            CsgOp::Merge => "merge",
+        }
+    }
+}
+
+/// One operand: a closed shape (or CSG), its material and whether it is
+/// turned inside out.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CsgChild {
+    /// The solid.
+    pub shape: Shape,
+    /// Its material (the CSG's when the child has none of its own).
+    pub material: u32,
+    /// POV-Ray's `inverse`: the complement of the solid.
+    pub inverse: bool,
+}
+
+/// A CSG node.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Csg {
+    op: CsgOp,
+    children: Vec<CsgChild>,
+    /// Each child's box (`None`: unbounded, or inverted).
+    child_bounds: Vec<Option<Aabb>>,
+    /// For many children: a tree over the bounded ones (`bounded[i]` is
+    /// the child of tree item i).
+    index: Option<(Bvh, Vec<u32>)>,
+    /// How many children are bounded (and not inverted).
+    bounded_count: usize,
+    bounds: Option<Aabb>,
+}
+
+/// An end of an interval of the combined solid: the surface there and what
+/// shading needs of it.
+#[derive(Clone, Copy, Debug)]
+pub struct Boundary<'a> {
+    /// Line parameter (±∞: no surface).
+    pub t: f64,
+    /// Outward unit normal of the set this boundary bounds.
+    pub normal: DVec3,
+    /// Shading normal, on the side of `normal`.
+    pub shading_normal: DVec3,
+    /// Whether `normal` is the leaf shape's own turned round.
+    pub flipped: bool,
+    /// Texture coordinates the leaf computed while testing (meshes).
+    pub uv: DVec2,
+    /// Vertex colour (white without one).
+    pub color: DVec3,
+    /// Material of the leaf's surface.
+    pub material: u32,
+    /// The leaf shape the surface belongs to (`None` at ±∞).
+    pub leaf: Option<&'a Shape>,
+}
+
+/// One interval of the combined solid.
+#[derive(Clone, Copy, Debug)]
+pub struct Span<'a> {
+    /// Where the line enters.
+    pub enter: Boundary<'a>,
+    /// Where it leaves.
+    pub exit: Boundary<'a>,
+}
+
+/// A list of disjoint intervals in ascending order.
+pub type Spans<'a> = SmallVec<[Span<'a>; 4]>;
+
+impl<'a> Boundary<'a> {
+    /// No surface, at t = ±∞.
+    pub fn at_infinity(t: f64) -> Self {
+        Boundary {
+            t,
+            normal: DVec3::ZERO,
+            shading_normal: DVec3::ZERO,
+            flipped: false,
+            uv: DVec2::ZERO,
+            color: DVec3::ONE,
+            material: 0,
+            leaf: None,
+        }
+    }
+
+    fn of_surface(s: Surface, material: u32, leaf: &'a Shape) -> Self {
+        if !s.t.is_finite() {
+            return Boundary::at_infinity(s.t);
+        }
+        Boundary {
+            t: s.t,
+            normal: s.normal,
+            shading_normal: s.normal,
+            flipped: false,
+            uv: DVec2::ZERO,
+            color: DVec3::ONE,
+            material,
+            leaf: Some(leaf),
+        }
+    }
+
+    /// A mesh's hit as an end; `enters` says which end, so the normal
+    /// faces against the line on entry and along it on exit whichever way
+    /// the mesh is wound.
+    fn of_mesh_hit(h: ShapeHit, enters: bool, direction: DVec3, leaf: &'a Shape) -> Self {
+        let outward = (h.normal.dot(direction) < 0.0) == enters;
+        let sign = if outward { 1.0 } else { -1.0 };
+        Boundary {
+            t: h.t,
+            normal: sign * h.normal,
+            shading_normal: sign * h.shading_normal,
+            flipped: !outward,
+            uv: h.uv,
+            color: h.color,
+            material: h.material.unwrap_or(0),
+            leaf: Some(leaf),
+        }
+    }
+
+    /// The same surface bounding the complement.
+    fn turned(self) -> Self {
+        Boundary {
+            normal: -self.normal,
+            shading_normal: -self.shading_normal,
+            flipped: !self.flipped,
+            ..self
+        }
+    }
+
+    /// The hit this boundary is for `ray`.
+    pub fn hit(&self, ray: &Ray) -> ShapeHit {
+        let mut h = ShapeHit {
+            t: self.t,
+            normal: self.normal,
+            front_face: ray.direction.dot(self.normal) < 0.0,
+            shading_normal: self.shading_normal,
+            uv: self.uv,
+            color: self.color,
+            material: Some(self.material),
+        };
+        if let Some(leaf) = self.leaf {
+            // The leaf computes its coordinates from its own normal.
+            let own = if self.flipped {
+                -self.normal
+            } else {
+                self.normal
+            };
+            h.uv = leaf.uv(ray.at(self.t), &ShapeHit { normal: own, ..h });
+        }
+        h
+    }
+}
+
+/// A ∪ B. Overlapping or touching intervals join; on equal parameters
+/// A's boundary is kept.
+pub fn unite<'a>(a: &[Span<'a>], b: &[Span<'a>]) -> Spans<'a> {
+    let mut out = Spans::new();
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() || j < b.len() {
+        let next = if j >= b.len() || (i < a.len() && a[i].enter.t <= b[j].enter.t) {
+            i += 1;
+            a[i - 1]
+        } else {
+            j += 1;
+            b[j - 1]
+        };
+        match out.last_mut() {
+            Some(last) if next.enter.t <= last.exit.t => {
+                if next.exit.t > last.exit.t {
+                    last.exit = next.exit;
+                }
+            }
+            _ => out.push(next),
+        }
+    }
+    out
+}
+
+/// A ∩ B. Each interval runs from the later entry to the earlier exit;
+/// on equal parameters A's boundary is kept; empty results are dropped.
+pub fn intersect<'a>(a: &[Span<'a>], b: &[Span<'a>]) -> Spans<'a> {
+    let mut out = Spans::new();
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() && j < b.len() {
+        let (x, y) = (&a[i], &b[j]);
+        let enter = if x.enter.t >= y.enter.t {
+            x.enter
+        } else {
+            y.enter
+        };
+        let exit = if x.exit.t <= y.exit.t { x.exit } else { y.exit };
+        if enter.t < exit.t {
+            out.push(Span { enter, exit });
+        }
+        if x.exit.t <= y.exit.t {
+            i += 1;
+        }
+        if y.exit.t <= x.exit.t {
+            j += 1;
+        }
+    }
+    out
+}
+
+/// ¬A over the whole line, its boundaries A's turned round.
+pub fn complement<'a>(a: &[Span<'a>]) -> Spans<'a> {
+    let mut out = Spans::new();
+    let mut from = Boundary::at_infinity(f64::NEG_INFINITY);
+    for s in a {
+        if from.t < s.enter.t {
+            out.push(Span {
+                enter: from,
+                exit: s.enter.turned(),
+            });
+        }
+        from = s.exit.turned();
+    }
+    if from.t < f64::INFINITY {
+        out.push(Span {
+            enter: from,
+            exit: Boundary::at_infinity(f64::INFINITY),
+        });
+    }
+    out
+}
+
+/// Whether the whole line of `ray` meets `b`.
+#[inline]
+fn line_meets(ray: &Ray, b: &Aabb) -> bool {
+    slab_interval(ray.origin, ray.direction, b.min, b.max).is_some()
+}
+
+impl Csg {
+    /// The node over `children` (at least one): bounds each child, and
+    /// indexes them when there are many.
+    pub fn new(op: CsgOp, children: Vec<CsgChild>) -> Csg {
+        let child_bounds: Vec<Option<Aabb>> = children
+            .iter()
+            .map(|c| if c.inverse { None } else { c.shape.bounds() })
+            .collect();
+        let bounded: Vec<u32> = (0..children.len() as u32)
+            .filter(|&i| child_bounds[i as usize].is_some())
+            .collect();
+        let index = (children.len() > INDEXED_CHILDREN).then(|| {
+            let bvh = Bvh::build(bounded.iter().filter_map(|&i| child_bounds[i as usize]));
+            let order = bvh.order().iter().map(|&k| bounded[k as usize]).collect();
+            (bvh, order)
+        });
+        let bounds = match op {
+            CsgOp::Union | CsgOp::Merge => child_bounds
+                .iter()
+                .try_fold(Aabb::EMPTY, |acc, b| b.map(|b| acc.union(&b))),
+            CsgOp::Intersection => {
+                let mut boxes = child_bounds.iter().flatten();
+                boxes.next().map(|first| {
+                    boxes.fold(*first, |acc, b| Aabb {
+                        min: acc.min.max(b.min),
+                        max: acc.max.min(b.max),
+                    })
+                })
+            }
+            CsgOp::Difference => child_bounds[0],
+        };
+        Csg {
+            op,
+            bounded_count: bounded.len(),
+            children,
+            child_bounds,
+            index,
+            bounds,
+        }
+    }
+
+    /// The operation.
+    pub fn op(&self) -> CsgOp {
+        self.op
+    }
+
+    /// The operands.
+    pub fn children(&self) -> &[CsgChild] {
+        &self.children
+    }
+
+    /// The tightest box the operation allows: a union's is its children's
+    /// union, an intersection's the overlap of theirs (an empty overlap is
+    /// a box with min above max, which no ray meets), a difference's its
+    /// first child's; `None` when unbounded.
+    pub fn bounds(&self) -> Option<Aabb> {
+        self.bounds
+    }
+
+    /// The children whose intervals along the line of `ray` may not be
+    /// empty, ascending; `None` when one that must be met (by an
+    /// intersection, or a difference's first) is not.
+    fn candidates(&self, ray: &Ray) -> Option<SmallVec<[u32; 8]>> {
+        let mut out: SmallVec<[u32; 8]> = SmallVec::new();
+        let mut met_bounded = 0;
+        match &self.index {
+            None => {
+                for (i, b) in self.child_bounds.iter().enumerate() {
+                    match b {
+                        None => out.push(i as u32),
+                        Some(b) if line_meets(ray, b) => {
+                            met_bounded += 1;
+                            out.push(i as u32);
+                        }
+                        Some(_) => {}
+                    }
+                }
+            }
+            Some((bvh, order)) => {
+                out.extend(
+                    (0..self.children.len() as u32)
+                        .filter(|&i| self.child_bounds[i as usize].is_none()),
+                );
+                bvh.visit(
+                    |b| line_meets(ray, b),
+                    |position| {
+                        let child = order[position];
+                        let b = self.child_bounds[child as usize];
+                        if b.is_some_and(|b| line_meets(ray, &b)) {
+                            met_bounded += 1;
+                            out.push(child);
+                        }
+                        true
+                    },
+                );
+                out.sort_unstable();
+            }
+        }
+        let all_met = met_bounded == self.bounded_count;
+        match self.op {
+            CsgOp::Intersection if !all_met => None,
+            CsgOp::Difference if out.first() != Some(&0) => None,
+            _ => Some(out),
+        }
+    }
+
+    /// Where the whole line of `ray` is inside the combined solid.
+    pub fn spans<'a>(&'a self, ray: &Ray) -> Spans<'a> {
+        let Some(candidates) = self.candidates(ray) else {
+            return Spans::new();
+        };
+        let mut ids = candidates.iter().map(|&i| &self.children[i as usize]);
+        let Some(first) = ids.next() else {
+            return Spans::new();
+        };
+        let mut acc = child_spans(first, ray);
+        for child in ids {
+            if acc.is_empty() && self.op != CsgOp::Union && self.op != CsgOp::Merge {
+                break;
+            }
+            let s = child_spans(child, ray);
+            acc = match self.op {
+                CsgOp::Union | CsgOp::Merge => unite(&acc, &s),
+                CsgOp::Intersection => intersect(&acc, &s),
+                CsgOp::Difference => intersect(&acc, &complement(&s)),
+            };
+        }
+        acc
+    }
+
+    /// The nearest hit with t in (t_min, t_max): the first end of a
+    /// combined interval there.
+    pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
+        let spans = self.spans(ray);
+        let b = spans
+            .iter()
+            .flat_map(|s| [s.enter, s.exit])
+            .find(|b| b.t > t_min && b.t < t_max)?;
+        Some(b.hit(ray))
+    }
+}
+
+/// The intervals of one operand, complemented when it is inverted.
+fn child_spans<'a>(child: &'a CsgChild, ray: &Ray) -> Spans<'a> {
+    let spans = shape_spans(&child.shape, child.material, ray);
+    if child.inverse {
+        complement(&spans)
+    } else {
+        spans
+    }
+}
+
+/// The intervals of a shape: a CSG's own, a mesh's by crossing parity,
+/// an analytic solid's from its file. Shapes without an inside (refused
+/// when a scene is built) have none.
+fn shape_spans<'a>(shape: &'a Shape, material: u32, ray: &Ray) -> Spans<'a> {
+    let span = |i: super::span::Interval| Span {
+        enter: Boundary::of_surface(i.enter, material, shape),
+        exit: Boundary::of_surface(i.exit, material, shape),
+    };
+    match shape {
+        Shape::Csg(c) => c.spans(ray),
+        Shape::Mesh(m) => m
+            .inside(ray)
+            .into_iter()
+            .map(|(a, b)| Span {
+                enter: Boundary::of_mesh_hit(a, true, ray.direction, shape),
+                exit: Boundary::of_mesh_hit(b, false, ray.direction, shape),
+            })
+            .collect(),
+        other => other
+            .inside(ray)
+            .map(|v| v.into_iter().map(span).collect())
+            .unwrap_or_default(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::rng::PixelRng;
+
+    fn end(t: f64) -> Boundary<'static> {
+        Boundary {
+            t,
+            normal: DVec3::X,
+            ..Boundary::at_infinity(t)
+        }
+    }
+
+    fn spans(list: &[(f64, f64)]) -> Spans<'static> {
+        list.iter()
+            .map(|&(a, b)| Span {
+                enter: end(a),
+                exit: end(b),
+            })
+            .collect()
+    }
+
+    fn ends(s: &[Span]) -> Vec<f64> {
+        s.iter().flat_map(|s| [s.enter.t, s.exit.t]).collect()
+    }
+
+    fn combine(op: CsgOp, a: &[Span<'static>], b: &[Span<'static>]) -> Spans<'static> {
+        match op {
+            CsgOp::Union | CsgOp::Merge => unite(a, b),
+            CsgOp::Intersection => intersect(a, b),
+            CsgOp::Difference => intersect(a, &complement(b)),
+        }
+    }
+
+    #[test]
+    fn the_ray_tracer_challenges_filtering_examples() {
+        // A sphere crossed at 1 and 3, a cube at 2 and 4 (The Ray Tracer
+        // Challenge, "Filtering a list of intersections").
+        let (a, b) = (spans(&[(1.0, 3.0)]), spans(&[(2.0, 4.0)]));
+        assert_eq!(ends(&combine(CsgOp::Union, &a, &b)), [1.0, 4.0]);
+        assert_eq!(ends(&combine(CsgOp::Intersection, &a, &b)), [2.0, 3.0]);
+        assert_eq!(ends(&combine(CsgOp::Difference, &a, &b)), [1.0, 2.0]);
+    }
+
+    #[test]
+    fn the_ray_tracer_challenges_rule_table() {
+        // (operation, hit on the left, inside left, inside right, allowed):
+        // the 24 rows of "Evaluating the rule for a CSG operation". A hit
+        // at t = 5 on one child; the other child contains 5 or lies away.
+        use CsgOp::*;
+        let rows = [
+            (Union, true, true, true, false),
+            (Union, true, true, false, true),
+            (Union, true, false, true, false),
+            (Union, true, false, false, true),
+            (Union, false, true, true, false),
+            (Union, false, true, false, false),
+            (Union, false, false, true, true),
+            (Union, false, false, false, true),
+            (Intersection, true, true, true, true),
+            (Intersection, true, true, false, false),
+            (Intersection, true, false, true, true),
+            (Intersection, true, false, false, false),
+            (Intersection, false, true, true, true),
+            (Intersection, false, true, false, true),
+            (Intersection, false, false, true, false),
+            (Intersection, false, false, false, false),
+            (Difference, true, true, true, false),
+            (Difference, true, true, false, true),
+            (Difference, true, false, true, false),
+            (Difference, true, false, false, true),
+            (Difference, false, true, true, true),
+            (Difference, false, true, false, true),
+            (Difference, false, false, true, false),
+            (Difference, false, false, false, false),
+        ];
+        for (op, lhit, inl, inr, allowed) in rows {
+            // The hit child leaves at 5 when the ray is inside it, else
+            // enters there; the other holds 5 inside or lies far away.
+            let hit_child = |inside: bool| spans(&[if inside { (0.0, 5.0) } else { (5.0, 10.0) }]);
+            let other = |inside: bool| spans(&[if inside { (0.0, 10.0) } else { (20.0, 30.0) }]);
+            let (a, b) = if lhit {
+                (hit_child(inl), other(inr))
+            } else {
+                (other(inl), hit_child(inr))
+            };
+            let kept = ends(&combine(op, &a, &b)).contains(&5.0);
+            assert_eq!(kept, allowed, "{op:?} lhit={lhit} inl={inl} inr={inr}");
+        }
+    }
+
+    /// Random interval lists on a coarse grid (so ends coincide often).
+    fn random_spans(rng: &mut PixelRng) -> Spans<'static> {
+        let mut ends = Vec::new();
+        let mut t = -1.0;
+        while ends.len() < 8 {
+            t += 1.0 + (rng.uniform() * 3.0).floor();
+            if rng.uniform() < 0.3 {
+                break;
+            }
+            ends.push(t);
+        }
+        ends.truncate(ends.len() / 2 * 2);
+        let mut list: Vec<(f64, f64)> = ends.chunks(2).map(|p| (p[0], p[1])).collect();
+        if rng.uniform() < 0.2 {
+            // A half-line.
+            match list.first_mut() {
+                Some(first) => first.0 = f64::NEG_INFINITY,
+                None => list.push((f64::NEG_INFINITY, 3.0)),
+            }
+        }
+        spans(&list)
+    }
+
+    fn contains(s: &[Span], t: f64) -> bool {
+        s.iter().any(|s| s.enter.t <= t && t <= s.exit.t)
+    }
+
+    #[test]
+    fn set_operations_agree_with_membership_everywhere_between_the_ends() {
+        let mut rng = PixelRng::new(27, 1, 2);
+        for _ in 0..2000 {
+            let (a, b) = (random_spans(&mut rng), random_spans(&mut rng));
+            for op in [CsgOp::Union, CsgOp::Intersection, CsgOp::Difference] {
+                let out = combine(op, &a, &b);
+                // Ascending, disjoint, none of zero length.
+                for w in out.windows(2) {
+                    assert!(w[0].exit.t < w[1].enter.t, "{op:?} {:?}", ends(&out));
+                }
+                assert!(out.iter().all(|s| s.enter.t < s.exit.t));
+                // Off the grid, membership is the Boolean of the children's.
+                for k in -3..60 {
+                    let t = k as f64 * 0.5 + 0.25;
+                    let (x, y) = (contains(&a, t), contains(&b, t));
+                    let want = match op {
+                        CsgOp::Union | CsgOp::Merge => x || y,
+                        CsgOp::Intersection => x && y,
+                        CsgOp::Difference => x && !y,
+                    };
+                    assert_eq!(contains(&out, t), want, "{op:?} at {t}: {:?}", ends(&out));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn coincident_faces_leave_no_sliver_and_keep_the_earlier_childs_surface() {
+        // A hole flush with a face: [1, 3] less [1, 2] is (2, 3].
+        let (a, b) = (spans(&[(1.0, 3.0)]), spans(&[(1.0, 2.0)]));
+        let d = combine(CsgOp::Difference, &a, &b);
+        assert_eq!(ends(&d), [2.0, 3.0]);
+        // Its entry is b's exit turned round.
+        assert_eq!(d[0].enter.normal, -DVec3::X);
+        // Two boxes face to face merge into one solid: no surface at 2.
+        let m = combine(CsgOp::Merge, &spans(&[(1.0, 2.0)]), &spans(&[(2.0, 3.0)]));
+        assert_eq!(ends(&m), [1.0, 3.0]);
+        // Their intersection is a face: no interval at all.
+        assert!(
+            combine(
+                CsgOp::Intersection,
+                &spans(&[(1.0, 2.0)]),
+                &spans(&[(2.0, 3.0)])
+            )
+            .is_empty()
+        );
+    }
+
+    #[test]
+    fn the_complement_of_the_complement_is_the_set() {
+        let mut rng = PixelRng::new(5, 0, 0);
+        for _ in 0..500 {
+            let a = random_spans(&mut rng);
+            assert_eq!(ends(&complement(&complement(&a))), ends(&a));
+        }
+    }
+}
