@@ -131,6 +131,44 @@ fn solids_cover_the_areas_geometry_gives_them() {
     assert!((area - pi).abs() / pi < 0.005, "its cap: {area}");
 }
 
+/// CSG seen from above covers what its set operation leaves: a lens cut
+/// from two spheres its rim circle πa² (a² = R² − c², c the centres'
+/// distance from the middle), a slab less a cylinder through it the square
+/// less the hole, a cube rounded by a sphere (the die) the square within
+/// the circle.
+#[test]
+fn csg_covers_the_areas_its_set_operation_leaves() {
+    let pi = std::f64::consts::PI;
+    // ∫ √(1 − x²) dx from 0.6 to 0.8, for the die's corners.
+    let half_disc = |x: f64| 0.5 * (x * (1.0 - x * x).sqrt() + x.asin());
+    for (object, expected) in [
+        (
+            "type = \"intersection\"\n[[objects.children]]\ntype = \"sphere\"\ncenter = [0, 0, 1.2]\n\
+             radius = 1.5\n[[objects.children]]\ntype = \"sphere\"\ncenter = [0, 0, -1.2]\nradius = 1.5",
+            pi * (1.5 * 1.5 - 1.2 * 1.2),
+        ),
+        (
+            "type = \"difference\"\n[[objects.children]]\ntype = \"box\"\ncorner1 = [-1, -1, -0.5]\n\
+             corner2 = [1, 1, 0.5]\n[[objects.children]]\ntype = \"cylinder\"\nbase = [0.2, 0, -1]\n\
+             cap = [0.2, 0, 1]\nradius = 0.5",
+            4.0 - pi * 0.25,
+        ),
+        (
+            "type = \"intersection\"\n[[objects.children]]\ntype = \"box\"\n\
+             corner1 = [-0.8, -0.8, -0.8]\ncorner2 = [0.8, 0.8, 0.8]\n\
+             [[objects.children]]\ntype = \"sphere\"",
+            4.0 * (0.6 * 0.8 + half_disc(0.8) - half_disc(0.6)),
+        ),
+    ] {
+        let s = scene(&silhouette_scene(object));
+        let area = covered_area(&film(&s, 2), 4.0);
+        assert!(
+            (area - expected).abs() / expected < 0.01,
+            "{object}: area {area}, expected {expected}"
+        );
+    }
+}
+
 #[test]
 fn non_uniformly_scaled_sphere_is_an_ellipse_of_area_pi_a_b() {
     let s = scene(&silhouette_scene(

@@ -310,10 +310,15 @@ impl Csg {
             CsgOp::Intersection => {
                 let mut boxes = child_bounds.iter().flatten();
                 boxes.next().map(|first| {
-                    boxes.fold(*first, |acc, b| Aabb {
+                    let overlap = boxes.fold(*first, |acc, b| Aabb {
                         min: acc.min.max(b.min),
                         max: acc.max.min(b.max),
-                    })
+                    });
+                    // No overlap: nothing to draw; a point stands for it.
+                    Aabb {
+                        min: overlap.min,
+                        max: overlap.max.max(overlap.min),
+                    }
                 })
             }
             CsgOp::Difference => child_bounds[0],
@@ -339,9 +344,8 @@ impl Csg {
     }
 
     /// The tightest box the operation allows: a union's is its children's
-    /// union, an intersection's the overlap of theirs (an empty overlap is
-    /// a box with min above max, which no ray meets), a difference's its
-    /// first child's; `None` when unbounded.
+    /// union, an intersection's the overlap of its bounded children's, a
+    /// difference's its first child's; `None` when unbounded.
     pub fn bounds(&self) -> Option<Aabb> {
         self.bounds
     }

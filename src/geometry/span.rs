@@ -1,7 +1,7 @@
 //! The question every closed solid answers for constructive solid
 //! geometry: along which intervals of the whole line o + t·d (t from −∞ to
 //! +∞) is the point inside? Roth's ray casting (1982) combines these
-//! intervals with set operations; see `accel/csg.rs`.
+//! intervals with set operations; see `csg.rs`.
 //!
 //! An interval is closed, [enter, exit], with the surface at each end:
 //! its parameter and the solid's outward unit normal there (world space).

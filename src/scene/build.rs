@@ -862,7 +862,7 @@ impl Check<'_, '_> {
             self.error(
                 inverse.span(),
                 format!(
-                    "{label}: `inverse` applies to a part of an intersection, difference or                      merge (a solid alone is drawn the same either way)"
+                    "{label}: `inverse` applies to a part of an intersection, difference or merge (a solid alone is drawn the same either way)"
                 ),
             );
         }
