@@ -4,8 +4,11 @@
 Renders the same scenes in both (bench/whitted.toml and .pov with a
 16-sample sphere light, the same with 64 samples (8×8 area light), that
 again with shadows through the glass ball (Prism's transparent_shadows),
-and the soft-shadow study: a point light and two sphere lights), without antialiasing, and prints each side's rays as it
-counts them (camera, reflected, refracted, shadow feelers), CPU and wall
+the soft-shadow study: a point light and two sphere lights, and the solids:
+bench/solids.toml and .pov, boxes, cylinders, cones, discs and tori under a
+16-sample sphere light, shadows through glass on both sides), without
+antialiasing, and prints each side's rays as it counts them (camera,
+reflected, refracted, shadow feelers), CPU and wall
 time from GNU time, on one thread and on all. Ray counts differ a little
 (POV-Ray also traces feelers from surfaces facing away from the light and
 counts rays its light buffer saves), so besides the plain time ratio the
@@ -38,6 +41,9 @@ CASES = [
      [("samples = 16", "samples = 64"), ("4, 4 circular", "8, 8 circular"),
       ("[render]\n", "[render]\ntransparent_shadows = true\n")]),
     ("soft-shadows", "scenes/soft-shadows.toml", "bench/soft-shadows.pov", 720, 300, []),
+    # Every object a solid (box, cylinder, cone, disc, torus); the .toml sets
+    # transparent_shadows, as POV-Ray's shadows pass through its glass.
+    ("solids", "bench/solids.toml", "bench/solids.pov", 640, 480, []),
 ]
 
 
