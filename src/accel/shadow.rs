@@ -175,8 +175,18 @@ impl Aggregate {
                     Shape::Sphere(s) if i == on => {
                         !hull.beyond_tangent_plane((apex - s.center) / s.radius)
                     }
-                    _ => true,
-                } && shape.bounds().is_none_or(|b| hull.may_meet_box(&b));
+                    // A sphere's own test is tighter than its box's.
+                    Shape::Sphere(s) => hull.may_meet_sphere(s.center, s.radius),
+                    // A box behind one of its face planes, as seen from
+                    // the apex and the whole light (the floor slab under
+                    // every point above it, the box the point lies on).
+                    Shape::Cuboid(b) => {
+                        let light = hull.apex + hull.axis * hull.distance;
+                        !b.separates(hull.apex, light, hull.radius, hull.slack)
+                            && hull.may_meet_box(&b.bounds())
+                    }
+                    _ => shape.bounds().is_none_or(|b| hull.may_meet_box(&b)),
+                };
                 within_budget() && (!may_block || found.push(i))
             },
         );

@@ -107,6 +107,27 @@ impl Cuboid {
         out
     }
 
+    /// Whether one face plane of the box has the point `apex` and the
+    /// whole ball (`center`, `radius`, widened by `slack`) on its outer
+    /// side: then no segment from the apex to the ball meets the box (the
+    /// box lies behind that plane). Worked in the box's own space, where
+    /// the ball's radius grows at most by the map's Frobenius norm.
+    pub fn separates(&self, apex: DVec3, center: DVec3, radius: f64, slack: f64) -> bool {
+        let m = self.transform.to_object.matrix3;
+        let stretch =
+            (m.x_axis.length_squared() + m.y_axis.length_squared() + m.z_axis.length_squared())
+                .sqrt();
+        let (a, c) = (
+            self.transform.to_object.transform_point3(apex),
+            self.transform.to_object.transform_point3(center),
+        );
+        let r = (radius + slack) * stretch;
+        (0..3).any(|i| {
+            (a[i] >= self.max[i] && c[i] - r > self.max[i])
+                || (a[i] <= self.min[i] && c[i] + r < self.min[i])
+        })
+    }
+
     /// Texture coordinates at the world point `point` (see the module).
     pub fn uv(&self, point: DVec3) -> DVec2 {
         let p = self.transform.to_object.transform_point3(point);
@@ -135,15 +156,20 @@ impl Cuboid {
 }
 
 /// The world bounding box of the object-space box `[min, max]` placed by
-/// `transform`: its eight corners, transformed.
+/// `transform` (Arvo's method: the centre mapped, and along each world
+/// axis the half extents weighted by the absolute matrix entries, which is
+/// where the farthest corner lies, without transforming eight corners).
 pub fn placed_bounds(transform: &Transform, min: DVec3, max: DVec3) -> Aabb {
-    Aabb::from_points((0..8).map(|i| {
-        transform.point(DVec3::new(
-            if i & 1 == 0 { min.x } else { max.x },
-            if i & 2 == 0 { min.y } else { max.y },
-            if i & 4 == 0 { min.z } else { max.z },
-        ))
-    }))
+    let m = transform.to_world.matrix3;
+    let center = transform.point(0.5 * (min + max));
+    let half = 0.5 * (max - min);
+    let abs = glam::DMat3::from_cols(m.x_axis.abs(), m.y_axis.abs(), m.z_axis.abs());
+    // Widened by a few roundings, so every corner lies within.
+    let reach = abs * half * (1.0 + 8.0 * f64::EPSILON) + center.abs() * (4.0 * f64::EPSILON);
+    Aabb {
+        min: center - reach,
+        max: center + reach,
+    }
 }
 
 #[cfg(test)]
