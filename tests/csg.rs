@@ -335,7 +335,11 @@ fn inverse_and_half_spaces_cut_as_povray_says() {
     );
     let down = surfaces(shape(&s), &Ray::new(DVec3::new(0.0, 5.0, 0.0), -DVec3::Y));
     assert_eq!(down.iter().map(|h| h.t).collect::<Vec<_>>(), [4.0, 4.5]);
-    assert_eq!(down[1].normal, -DVec3::Y, "the cut faces down, out of the cap");
+    assert_eq!(
+        down[1].normal,
+        -DVec3::Y,
+        "the cut faces down, out of the cap"
+    );
 }
 
 #[test]
