@@ -652,3 +652,56 @@ fn a_merge_of_many_children_is_found_through_their_boxes() {
             .is_none()
     );
 }
+
+#[test]
+fn refraction_follows_the_csg_boundary_whatever_paints_a_part() {
+    // A glass block less a ball painted with a water material: the ball's
+    // surface is the block's boundary, so the medium behind it is air (the
+    // block's outside), not water. Down the axis: 1 → 1.5 → 1 → 1.5 → 1.
+    let toml = r#"
+        [render]
+        width = 101
+        height = 101
+        spp = 1
+        max_depth = 8
+        min_weight = 0
+        [camera]
+        type = "orthographic"
+        position = [0, 0, -10]
+        look_at = [0, 0, 0]
+        view_height = 4
+        [materials.glass]
+        color = [1, 1, 1]
+        kt = 0.9
+        ior = 1.5
+        [materials.water]
+        color = [0.5, 0.7, 1]
+        kt = 0.9
+        ior = 1.33
+        [[objects]]
+        type = "difference"
+        material = "glass"
+        [[objects.children]]
+        type = "box"
+        corner1 = [-1, -1, -1]
+        corner2 = [1, 1, 1]
+        [[objects.children]]
+        type = "sphere"
+        radius = 0.5
+        material = "water"
+    "#;
+    let s = Scene::from_toml(toml, "test").unwrap();
+    let e = prism::render::explain::explain(&s, &s.settings, 50, 50, 0).unwrap();
+    let mut etas = Vec::new();
+    let mut materials = Vec::new();
+    let mut node = Some(&e.tree);
+    while let Some(n) = node {
+        if let Some(h) = &n.hit {
+            etas.push((h.eta_incoming.unwrap(), h.eta_beyond.unwrap()));
+            materials.push(h.material.clone());
+        }
+        node = n.refracted.as_deref();
+    }
+    assert_eq!(etas, [(1.0, 1.5), (1.5, 1.0), (1.0, 1.5), (1.5, 1.0)]);
+    assert_eq!(materials, ["glass", "water", "water", "glass"]);
+}

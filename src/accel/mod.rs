@@ -153,6 +153,10 @@ impl Aggregate {
             color: h.color,
             primitive,
             material: h.material.unwrap_or(p.material),
+            medium: match p.shape {
+                Shape::Csg(_) => p.material,
+                _ => h.material.unwrap_or(p.material),
+            },
         }
     }
 

@@ -63,4 +63,8 @@ pub struct Hit {
     pub primitive: u32,
     /// Index of the material at the hit.
     pub material: u32,
+    /// The material whose index of refraction fills the solid behind the
+    /// surface: the hit's own, but for CSG the whole solid's (a child's
+    /// material paints its part of the surface; the medium is the CSG's).
+    pub medium: u32,
 }

@@ -1003,7 +1003,8 @@ impl Check<'_, '_> {
             return primitives;
         }
         let csg = Csg::new(op, operands);
-        let material = csg.children()[0].material;
+        // The CSG's own material fills it (its medium); else its first part's.
+        let material = material.unwrap_or(csg.children()[0].material);
         vec![Primitive {
             shape: Shape::Csg(Box::new(csg)),
             material,

@@ -339,7 +339,7 @@ impl<'a> Whitted<'a> {
             return color;
         }
 
-        let split = self.split(&point, material_index, entering, path.media, rec);
+        let split = self.split(&point, hit.medium, entering, path.media, rec);
         if split.kr != DVec3::ZERO {
             if self.worth_tracing(path.weight * split.kr) {
                 let r = Ray::spawn(hit.point, hit.normal, reflect(ray.direction, point.n));
@@ -373,12 +373,15 @@ impl<'a> Whitted<'a> {
     fn split<R: Recorder>(
         &self,
         point: &ShadingPoint,
-        material_index: u32,
+        medium: u32,
         entering: bool,
         media: Media,
         rec: &mut R,
     ) -> Split {
         let material = point.material;
+        // The index of the solid behind the surface (a CSG's, whichever
+        // part's material paints the surface).
+        let ior = self.scene.materials[medium as usize].ior;
         let (mut kr, mut kt) = (material.kr, material.kt);
         if kt == DVec3::ZERO {
             rec.split(kr, kt, None, false);
@@ -391,14 +394,10 @@ impl<'a> Whitted<'a> {
         }
         // Indices on both sides: η = ηi/ηt.
         let (eta_i, eta_t, media_beyond) = if entering {
-            (
-                media.ior(),
-                material.ior,
-                media.entering(material_index, material.ior),
-            )
+            (media.ior(), ior, media.entering(medium, ior))
         } else {
-            let outside = media.leaving(material_index);
-            (material.ior, outside.ior(), outside)
+            let outside = media.leaving(medium);
+            (ior, outside.ior(), outside)
         };
         let cos_i = point.view.dot(point.n);
         if material.fresnel != Fresnel::Off {
