@@ -21,7 +21,7 @@ use prism::render::aov::{Aov, render_aov};
 use prism::render::explain::explain as explain_pixel;
 use prism::render::{Film, Region, RenderError, render_region};
 use prism::scene::LoadOptions;
-use prism::scene::dict::{DictScene, Problem, Value};
+use prism::scene::dict::{DictScene, MAX_NESTING, Problem, Value, too_deep_message};
 use prism::text::escape_controls;
 use prism::{RenderObserver, RenderSettings, SceneError as LoadError, limits};
 use pyo3::create_exception;
@@ -748,10 +748,14 @@ fn crop_arg(crop: &Bound<'_, PyAny>) -> PyResult<[u32; 4]> {
 }
 
 /// Why a dict value cannot be a scene value: the message, and the path to
-/// it, innermost step first (filled in as the error returns).
+/// it, innermost step first (filled in as the error returns). `deep`: it
+/// nests past [`MAX_NESTING`], a scene problem (SceneError with its key
+/// path, as the same value given to the library would be); anything else
+/// is a value no scene holds (ValueError).
 struct Unfit {
     message: String,
     steps: Vec<String>,
+    deep: bool,
 }
 
 impl Unfit {
@@ -760,13 +764,22 @@ impl Unfit {
         self
     }
 
-    fn into_err(self) -> PyErr {
+    fn into_err(self, py: Python<'_>) -> PyErr {
         let mut path = String::new();
         for step in self.steps.iter().rev() {
             if !step.starts_with('[') && !path.is_empty() {
                 path.push('.');
             }
             path.push_str(step);
+        }
+        if self.deep {
+            return dict_error(
+                py,
+                vec![Problem {
+                    key_path: path,
+                    message: self.message,
+                }],
+            );
         }
         PyValueError::new_err(format!("{path}: {}", self.message))
     }
@@ -791,6 +804,7 @@ fn unfit(message: String) -> Unfit {
     Unfit {
         message,
         steps: Vec::new(),
+        deep: false,
     }
 }
 
@@ -813,22 +827,33 @@ fn dict_key(key: &Bound<'_, PyAny>) -> Fit<String> {
 
 /// A Python value as a scene value: bool, int, float, str (and
 /// os.PathLike), list and tuple, dict (and any Mapping), NumPy arrays and
-/// scalars.
-/// How deep a dict scene may nest: far more than any scene needs, far less
-/// than the stack allows (a list that holds itself would recurse for ever).
-const MAX_NESTING: usize = 64;
-
+/// scalars. Tables and lists nested past [`MAX_NESTING`] (counted as the
+/// library counts them: the object's or section's value is level 1) are
+/// refused before the walk goes deeper: it recurses once per level, and a
+/// list that holds itself would recurse for ever.
 fn value_of(obj: &Bound<'_, PyAny>) -> Fit<Value> {
-    value_at(obj, 0)
+    value_at(obj, 0, false)
 }
 
-fn value_at(obj: &Bound<'_, PyAny>, depth: usize) -> Fit<Value> {
-    if depth > MAX_NESTING {
-        return Err(unfit(format!(
-            "nested more than {MAX_NESTING} levels deep (a list or dict that holds itself?)"
-        )));
-    }
-    let value_of = |o: &Bound<'_, PyAny>| value_at(o, depth + 1);
+/// [`value_of`] for a value below `above` tables and lists; `converted`:
+/// it came from `tolist()`, not to be converted again (a `tolist` that
+/// returns its own object would recurse for ever).
+fn value_at(obj: &Bound<'_, PyAny>, above: usize, converted: bool) -> Fit<Value> {
+    // The level of a table or list here, if it may be read.
+    let level = || {
+        if above >= MAX_NESTING {
+            Err(Unfit {
+                message: format!(
+                    "{}; a list or dict that holds itself nests without end",
+                    too_deep_message()
+                ),
+                steps: Vec::new(),
+                deep: true,
+            })
+        } else {
+            Ok(above + 1)
+        }
+    };
     if let Ok(b) = obj.cast::<PyBool>() {
         return Ok(Value::Bool(b.is_true()));
     }
@@ -850,6 +875,7 @@ fn value_at(obj: &Bound<'_, PyAny>, depth: usize) -> Fit<Value> {
             .map_err(|e| unfit(e.to_string()));
     }
     if let Ok(d) = obj.cast::<PyDict>() {
+        let level = level()?;
         let mut entries = Vec::with_capacity(d.len());
         // A copy of the items: user code run below (`tolist`,
         // `__fspath__`) may resize the dict, which its iterator forbids.
@@ -857,7 +883,7 @@ fn value_at(obj: &Bound<'_, PyAny>, depth: usize) -> Fit<Value> {
             d.items().iter().filter_map(|i| i.extract().ok()).collect();
         for (k, v) in items {
             let key = dict_key(&k)?;
-            match value_of(&v) {
+            match value_at(&v, level, false) {
                 Ok(v) => entries.push((key, v)),
                 Err(e) => return Err(e.at(key_step(&key))),
             }
@@ -865,10 +891,10 @@ fn value_at(obj: &Bound<'_, PyAny>, depth: usize) -> Fit<Value> {
         return Ok(Value::Table(entries));
     }
     if let Ok(l) = obj.cast::<PyList>() {
-        return items_of(l.iter(), depth + 1);
+        return items_of(l.iter(), level()?);
     }
     if let Ok(t) = obj.cast::<PyTuple>() {
-        return items_of(t.iter(), depth + 1);
+        return items_of(t.iter(), level()?);
     }
     let py = obj.py();
     let other = |e: PyErr| unfit(e.to_string());
@@ -877,19 +903,21 @@ fn value_at(obj: &Bound<'_, PyAny>, depth: usize) -> Fit<Value> {
             .import("os")
             .and_then(|os| os.call_method1("fspath", (obj,)))
             .map_err(other)?;
-        return value_of(&path);
+        // A str or bytes (os.fspath returns nothing else).
+        return value_at(&path, above, true);
     }
-    if obj.hasattr("tolist").map_err(other)? && !obj.is_instance_of::<PyString>() {
+    if !converted && obj.hasattr("tolist").map_err(other)? && !obj.is_instance_of::<PyString>() {
         // A NumPy array or scalar: its Python values.
         let plain = obj.call_method0("tolist").map_err(other)?;
-        return value_of(&plain);
+        return value_at(&plain, above, true);
     }
     if let Ok(m) = obj.cast::<pyo3::types::PyMapping>() {
+        let level = level()?;
         let mut entries = Vec::new();
         for item in m.items().map_err(other)?.iter() {
             let (k, v): (Bound<'_, PyAny>, Bound<'_, PyAny>) = item.extract().map_err(other)?;
             let key = dict_key(&k)?;
-            match value_of(&v) {
+            match value_at(&v, level, false) {
                 Ok(v) => entries.push((key, v)),
                 Err(e) => return Err(e.at(key_step(&key))),
             }
@@ -904,10 +932,11 @@ fn value_at(obj: &Bound<'_, PyAny>, depth: usize) -> Fit<Value> {
     )))
 }
 
-fn items_of<'py>(items: impl Iterator<Item = Bound<'py, PyAny>>, depth: usize) -> Fit<Value> {
+/// The items of a list or tuple at `level`.
+fn items_of<'py>(items: impl Iterator<Item = Bound<'py, PyAny>>, level: usize) -> Fit<Value> {
     let mut out = Vec::with_capacity(items.size_hint().0);
     for (i, item) in items.enumerate() {
-        out.push(value_at(&item, depth).map_err(|e| e.at(format!("[{i}]")))?);
+        out.push(value_at(&item, level, false).map_err(|e| e.at(format!("[{i}]")))?);
     }
     Ok(Value::Array(out))
 }
@@ -931,8 +960,19 @@ fn dict_scene(py: Python<'_>, scene: &Bound<'_, PyAny>) -> PyResult<DictScene> {
     };
     let mut assembled = DictScene::new();
     for (k, v) in entries {
-        let key = dict_key(&k).map_err(Unfit::into_err)?;
+        let key = dict_key(&k).map_err(|e| e.into_err(py))?;
         let objects = if key == "objects" {
+            // A NumPy array of objects: its list, so that each object is
+            // read as one (and nests as deep as one in a list may).
+            let v = if !v.is_instance_of::<PyList>()
+                && !v.is_instance_of::<PyTuple>()
+                && !v.is_instance_of::<PyString>()
+                && v.hasattr("tolist")?
+            {
+                v.call_method0("tolist")?
+            } else {
+                v.clone()
+            };
             v.cast::<PyList>()
                 .map(|l| l.iter().collect::<Vec<_>>())
                 .or_else(|_| v.cast::<PyTuple>().map(|t| t.iter().collect::<Vec<_>>()))
@@ -947,12 +987,12 @@ fn dict_scene(py: Python<'_>, scene: &Bound<'_, PyAny>) -> PyResult<DictScene> {
                         py.check_signals()?;
                     }
                     let value = value_of(item)
-                        .map_err(|e| e.at(format!("[{i}]")).at("objects".into()).into_err())?;
+                        .map_err(|e| e.at(format!("[{i}]")).at("objects".into()).into_err(py))?;
                     assembled.object(value);
                 }
             }
             None => {
-                let value = value_of(&v).map_err(|e| e.at(key_step(&key)).into_err())?;
+                let value = value_of(&v).map_err(|e| e.at(key_step(&key)).into_err(py))?;
                 assembled.section(&key, value);
             }
         }

@@ -238,17 +238,21 @@ def test_messages_carry_no_raw_control_characters(tmp_path):
 
 def test_from_dict_refuses_a_list_that_holds_itself():
     # Walked without a bound it overflowed the stack and killed Python.
+    # Nesting past the bound is a scene problem, named by its key path
+    # (test_csg_dict.py tests the bound itself).
     loop = []
     loop.append(loop)
     d = small()
     d["objects"] = [{"type": "sphere", "material": "red", "center": loop, "radius": 1}]
-    with pytest.raises(ValueError, match="nested"):
+    with pytest.raises(prism.SceneError, match="nested more than") as e:
         prism.Scene.from_dict(d)
+    assert e.value.key_path.startswith("objects[0].center[0][0]"), e.value.key_path
     deep = {"type": "sphere"}
     for _ in range(10_000):
         deep = {"x": deep}
-    with pytest.raises(ValueError, match="nested"):
+    with pytest.raises(prism.SceneError, match="nested more than") as e:
         prism.Scene.from_dict(small(objects=[deep]))
+    assert e.value.key_path.startswith("objects[0].x.x"), e.value.key_path
 
 
 def test_only_regular_files_are_loaded(tmp_path):

@@ -12,6 +12,12 @@
 //! Objects are fed one at a time ([`DictScene::object`]) and each is turned
 //! into its `ObjectDesc` at once, so a million of them never stand as a
 //! million syntax trees.
+//!
+//! Every walk of a value here recurses once per table or list it nests
+//! (the digest, the TOML values, serde's structs, dropping them), so a
+//! value nested deeper than [`MAX_NESTING`] is refused, by its key path,
+//! before any of them: the check and the refusal walk with a stack of
+//! their own, never the thread's.
 
 use std::borrow::Cow;
 use std::collections::HashMap;
@@ -25,7 +31,28 @@ use toml::de::{DeArray, DeTable, DeValue, ValueDeserializer};
 use super::error::Diagnostics;
 use super::format::SceneFile;
 use super::{LoadOptions, Scene, build};
+use crate::limits::MAX_CSG_DEPTH;
 use crate::text::escape_controls;
+
+/// How deeply tables and lists may nest in one object or one section's
+/// value (the object's table, or the section's, is level 1; a section's
+/// own list of objects is not counted). Each CSG operation costs two
+/// levels, its table and its `children` list, so a CSG nested
+/// [`MAX_CSG_DEPTH`] deep has its innermost parts' tables at level
+/// `2 * MAX_CSG_DEPTH + 1` (129), and their values reach at most five
+/// further (a keyed `transform`: list, step, keys, key, value; 134). The
+/// margin lets CSG of a few operations more reach the builder, which
+/// refuses them with its own message. The bound on every recursion over
+/// a dict scene's values, far below what a thread's stack allows.
+pub const MAX_NESTING: usize = 2 * MAX_CSG_DEPTH + 16;
+
+/// The message for a value nested past [`MAX_NESTING`].
+pub fn too_deep_message() -> String {
+    format!(
+        "tables and lists nested more than {MAX_NESTING} deep; Prism reads no deeper \
+         (CSG nests at most {MAX_CSG_DEPTH} operations, two levels each: a table and its `children`)"
+    )
+}
 
 const SECTIONS: &str = "`render`, `animation`, `camera`, `materials`, `lights` or `objects`";
 
@@ -123,7 +150,12 @@ impl DictScene {
             return;
         }
         let node = self.node(0, name);
-        let numbers = numbers(&value, std::mem::take(&mut self.scratch));
+        let (numbers, deep) = numbers(&value, std::mem::take(&mut self.scratch));
+        if deep {
+            self.scratch = numbers;
+            self.refuse_deep(node, value);
+            return;
+        }
         let mut parsed = parse_numbers(&numbers);
         let value = self.de_value(value, node, &mut parsed);
         drop(parsed);
@@ -186,7 +218,12 @@ impl DictScene {
         self.digest.update(b"O");
         let node = self.push(parent, Step::Index(self.objects));
         self.objects += 1;
-        let numbers = numbers(&value, std::mem::take(&mut self.scratch));
+        let (numbers, deep) = numbers(&value, std::mem::take(&mut self.scratch));
+        if deep {
+            self.scratch = numbers;
+            self.refuse_deep(node, value);
+            return;
+        }
         let mut parsed = parse_numbers(&numbers);
         let value = self.de_value(value, node, &mut parsed);
         drop(parsed);
@@ -258,6 +295,68 @@ impl DictScene {
 
     fn problem(&mut self, node: u32, message: String) {
         self.problems.push((node as usize, message));
+    }
+
+    /// Records that `value` (at `node`) nests past [`MAX_NESTING`], at the
+    /// first table or list too deep, and drops it without recursing.
+    fn refuse_deep(&mut self, node: u32, value: Value) {
+        let at = self.deep_node(node, &value);
+        self.problem(at, too_deep_message());
+        dispose(value);
+    }
+
+    /// The node of the first table or list of `value` (in walk order)
+    /// nested past [`MAX_NESTING`], with the nodes of the path to it;
+    /// `node` if there is none.
+    fn deep_node(&mut self, node: u32, value: &Value) -> u32 {
+        enum Via<'a> {
+            Key(&'a str),
+            Index(usize),
+        }
+        // The tables and lists walked: (parent's number + 1, step).
+        let mut walked: Vec<(usize, Via<'_>)> = Vec::new();
+        let mut stack: Vec<(&Value, usize, usize)> = vec![(value, 1, 0)];
+        let mut found = None;
+        while let Some((v, depth, at)) = stack.pop() {
+            if depth > MAX_NESTING {
+                found = Some(at);
+                break;
+            }
+            match v {
+                Value::Array(items) => {
+                    for (i, item) in items.iter().enumerate().rev() {
+                        if matches!(item, Value::Array(_) | Value::Table(_)) {
+                            walked.push((at, Via::Index(i)));
+                            stack.push((item, depth + 1, walked.len()));
+                        }
+                    }
+                }
+                Value::Table(entries) => {
+                    for (key, item) in entries.iter().rev() {
+                        if matches!(item, Value::Array(_) | Value::Table(_)) {
+                            walked.push((at, Via::Key(key)));
+                            stack.push((item, depth + 1, walked.len()));
+                        }
+                    }
+                }
+                _ => {}
+            }
+        }
+        let mut steps = Vec::new();
+        let mut at = found.unwrap_or(0);
+        while at != 0 {
+            let (parent, step) = &walked[at - 1];
+            steps.push(step);
+            at = *parent;
+        }
+        let mut n = node;
+        for step in steps.into_iter().rev() {
+            n = match step {
+                Via::Key(key) => self.node(n, key),
+                Via::Index(i) => self.push(n, Step::Index(*i as u32)),
+            };
+        }
+        n
     }
 
     fn digest_str(&mut self, s: &str) {
@@ -364,33 +463,50 @@ impl DictScene {
 
 /// The numbers of `value`, in walk order, as the text of a TOML array
 /// (written into `buffer`): the TOML parser's numbers are made by parsing,
-/// so they are parsed once per value from their shortest exact text.
-fn numbers(value: &Value, mut buffer: String) -> String {
+/// so they are parsed once per value from their shortest exact text. With
+/// `true` (the text unfinished) if `value` nests past [`MAX_NESTING`].
+fn numbers(value: &Value, mut buffer: String) -> (String, bool) {
     use std::fmt::Write;
-    fn walk(v: &Value, out: &mut String) {
+    buffer.clear();
+    buffer.push('[');
+    // (value, tables and lists above it), next to write on top.
+    let mut stack: Vec<(&Value, usize)> = vec![(value, 0)];
+    while let Some((v, above)) = stack.pop() {
         match v {
             Value::Integer(i) => {
-                let _ = write!(out, "{i},");
+                let _ = write!(buffer, "{i},");
             }
-            Value::Float(f) if f.is_nan() => out.push_str("nan,"),
+            Value::Float(f) if f.is_nan() => buffer.push_str("nan,"),
             Value::Float(f) if f.is_infinite() => {
-                out.push_str(if *f > 0.0 { "inf," } else { "-inf," })
+                buffer.push_str(if *f > 0.0 { "inf," } else { "-inf," })
             }
             // `{:?}` is the shortest text that reads back as the same f64,
             // always with a `.` or an exponent: a TOML float.
             Value::Float(f) => {
-                let _ = write!(out, "{f:?},");
+                let _ = write!(buffer, "{f:?},");
             }
-            Value::Array(items) => items.iter().for_each(|i| walk(i, out)),
-            Value::Table(entries) => entries.iter().for_each(|(_, i)| walk(i, out)),
+            Value::Array(_) | Value::Table(_) if above >= MAX_NESTING => return (buffer, true),
+            Value::Array(items) => stack.extend(items.iter().rev().map(|i| (i, above + 1))),
+            Value::Table(entries) => {
+                stack.extend(entries.iter().rev().map(|(_, i)| (i, above + 1)))
+            }
             Value::Bool(_) | Value::String(_) => {}
         }
     }
-    buffer.clear();
-    buffer.push('[');
-    walk(value, &mut buffer);
     buffer.push(']');
-    buffer
+    (buffer, false)
+}
+
+/// Drops `value` without recursing, however deep it nests.
+fn dispose(value: Value) {
+    let mut stack = vec![value];
+    while let Some(v) = stack.pop() {
+        match v {
+            Value::Array(items) => stack.extend(items),
+            Value::Table(entries) => stack.extend(entries.into_iter().map(|(_, v)| v)),
+            _ => {}
+        }
+    }
 }
 
 /// The numbers written by [`numbers`], parsed, in order.
@@ -561,10 +677,107 @@ mod tests {
         assert!(!shown.iter().any(|s| s.contains('\n')), "{shown:?}");
     }
 
+    fn s(text: &str) -> Value {
+        Value::String(text.into())
+    }
+
+    /// A CSG `depth` operations deep around a sphere at the origin whose
+    /// transform is keyed (the deepest values an object holds), built
+    /// without cloning (a clone recurses).
+    fn nested_csg(depth: usize) -> Value {
+        let key = |frame: i64| {
+            Value::Table(vec![
+                ("frame".into(), Value::Integer(frame)),
+                ("value".into(), v3(0.0, 0.0, 0.0)),
+            ])
+        };
+        let mut v = Value::Table(vec![
+            ("type".into(), s("sphere")),
+            ("center".into(), v3(0.0, 0.0, 0.0)),
+            (
+                "transform".into(),
+                Value::Array(vec![Value::Table(vec![(
+                    "translate".into(),
+                    Value::Array(vec![key(0), key(1)]),
+                )])]),
+            ),
+        ]);
+        for _ in 0..depth {
+            v = Value::Table(vec![
+                ("type".into(), s("intersection")),
+                ("material".into(), s("a.b")),
+                ("children".into(), Value::Array(vec![v])),
+            ]);
+        }
+        v
+    }
+
+    fn with_object(object: Value) -> Result<Scene, Vec<Problem>> {
+        let mut d = scene(Value::Float(1.0), "a.b");
+        d.object(object);
+        d.finish(Path::new("."), &LoadOptions::default())
+    }
+
+    #[test]
+    fn csg_as_deep_as_the_limit_is_read_from_data() {
+        // 64 operations (and a keyed transform at the bottom) pass the
+        // nesting bound; 65 to 69 reach the builder, which names its limit;
+        // past that the values are refused before they are walked.
+        assert!(with_object(nested_csg(MAX_CSG_DEPTH)).is_ok());
+        for depth in [MAX_CSG_DEPTH + 1, (MAX_NESTING - 6) / 2] {
+            let problems = with_object(nested_csg(depth)).unwrap_err();
+            assert_eq!(problems.len(), 1, "{problems:?}");
+            assert!(
+                problems[0].message.contains("CSG nested more than 64 deep"),
+                "{problems:?}"
+            );
+        }
+        let problems = with_object(nested_csg(MAX_NESTING / 2)).unwrap_err();
+        assert!(
+            problems[0].message.contains("nested more than"),
+            "{problems:?}"
+        );
+    }
+
+    #[test]
+    fn values_nested_past_the_bound_are_refused_by_key_path() {
+        let levels = 100_000;
+        // A merge in a merge in a merge …
+        let mut deep = t(&[("type", s("sphere"))]);
+        for _ in 0..levels {
+            deep = Value::Table(vec![
+                ("type".into(), s("merge")),
+                ("children".into(), Value::Array(vec![deep])),
+            ]);
+        }
+        // A list in a list in a list …
+        let mut list = Value::Float(1.0);
+        for _ in 0..levels {
+            list = Value::Array(vec![list]);
+        }
+        let mut d = scene(Value::Float(1.0), "a.b");
+        d.object(deep);
+        d.section("camera", Value::Table(vec![("position".into(), list)]));
+        let problems = d
+            .finish(Path::new("."), &LoadOptions::default())
+            .unwrap_err();
+        let limit = format!("nested more than {MAX_NESTING} deep");
+        // The first table or list past the bound (level MAX_NESTING + 1):
+        // the object's k-th part is level 2k + 1, `position` level 2.
+        let object = format!("objects[2]{}", ".children[0]".repeat(MAX_NESTING / 2));
+        let camera = format!("camera.position{}", "[0]".repeat(MAX_NESTING - 1));
+        let paths: Vec<_> = problems.iter().map(|p| p.key_path.as_str()).collect();
+        assert_eq!(paths, [object.as_str(), camera.as_str()], "{problems:?}");
+        assert!(
+            problems.iter().all(|p| p.message.contains(&limit)),
+            "{problems:?}"
+        );
+    }
+
     #[test]
     fn numbers_read_back_exactly() {
         for f in [0.1, -0.0, 1e-300, 5e-324, 1.7976931348623157e308, 1e16, 3.0] {
-            let text = numbers(&Value::Float(f), String::new());
+            let (text, _) = numbers(&Value::Float(f), String::new());
             let mut parsed = parse_numbers(&text);
             let back: f64 = serde::Deserialize::deserialize(ValueDeserializer::from(Spanned::new(
                 0..1,
