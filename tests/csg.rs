@@ -4,6 +4,8 @@
 //! surfaces, an air bubble in a block, CSG of closed meshes against the
 //! same CSG of their analytic twins, and the scene format's refusals.
 
+#![allow(clippy::disallowed_methods)] // references computed with the platform's functions
+
 use glam::DVec3;
 use prism::accel::Shape;
 use prism::geometry::ShapeHit;

@@ -185,6 +185,13 @@ impl Aggregate {
                         !b.separates(hull.apex, light, hull.radius, hull.slack)
                             && hull.may_meet_box(&b.bounds())
                     }
+                    // A cylinder or cone by the planes of its own box
+                    // (a point on its end disc, the light beyond it).
+                    Shape::Cone(c) => {
+                        let light = hull.apex + hull.axis * hull.distance;
+                        !c.separates(hull.apex, light, hull.radius + hull.slack)
+                            && hull.may_meet_box(&c.bounds())
+                    }
                     _ => shape.bounds().is_none_or(|b| hull.may_meet_box(&b)),
                 };
                 within_budget() && (!may_block || found.push(i))
@@ -610,6 +617,121 @@ mod tests {
         // The test means something: most points were culled to a few
         // candidates, and some feelers were blocked, some not.
         assert!(culled > 450, "{culled}");
+        assert!(
+            blocked > compared / 20 && blocked < compared * 19 / 20,
+            "{blocked}/{compared}"
+        );
+    }
+
+    /// Turned boxes and cylinders and a floor slab: the face-plane culling
+    /// drops only what cannot block, for points on the slab, in the air and
+    /// on the solids themselves (feelers from their far sides included).
+    #[test]
+    fn candidates_among_boxes_and_cylinders_answer_as_the_full_queries_do() {
+        use crate::geometry::{Cone, Cuboid};
+        use crate::math::Transform;
+        use glam::{DAffine3, DQuat};
+        let mut rng = PixelRng::new(9, 4, 2);
+        let mut turn = |rng: &mut PixelRng| {
+            let axis = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) - 0.5;
+            let place = DVec3::new(
+                rng.uniform() * 8.0 - 4.0,
+                rng.uniform() * 3.0,
+                rng.uniform() * 8.0 - 4.0,
+            );
+            Transform::from_affine(DAffine3::from_scale_rotation_translation(
+                DVec3::new(
+                    0.3 + rng.uniform(),
+                    0.3 + rng.uniform(),
+                    0.3 + rng.uniform(),
+                ),
+                DQuat::from_axis_angle(axis.normalize(), rng.uniform() * 3.0),
+                place,
+            ))
+            .unwrap()
+        };
+        let mut primitives = Vec::new();
+        for i in 0..30 {
+            let transform = turn(&mut rng);
+            let shape = if i % 2 == 0 {
+                Shape::Cuboid(Box::new(Cuboid {
+                    min: DVec3::splat(-0.5),
+                    max: DVec3::splat(0.5),
+                    transform,
+                }))
+            } else {
+                Shape::Cone(Box::new(Cone {
+                    base_radius: 0.4,
+                    cap_radius: 0.2 * (i % 3) as f64,
+                    open: i % 5 == 0,
+                    transform,
+                }))
+            };
+            primitives.push(Primitive { shape, material: 0 });
+        }
+        primitives.push(Primitive {
+            shape: Shape::Cuboid(Box::new(Cuboid {
+                min: DVec3::new(-10.0, -1.0, -10.0),
+                max: DVec3::new(10.0, 0.0, 10.0),
+                transform: Transform::default(),
+            })),
+            material: 0,
+        });
+        let aggregate = Aggregate::new(primitives);
+        let (center, radius) = (DVec3::new(1.0, 6.0, 0.5), 0.8);
+        let (mut culled, mut compared, mut blocked) = (0, 0, 0);
+        for k in 0..600 {
+            let (apex, on, normal) = if k % 3 == 2 {
+                // A point on a solid: where a ray from outside meets it.
+                let on = rng.below(30) as u32;
+                let shape = &aggregate.primitives()[on as usize].shape;
+                let target = shape.bounds().unwrap().centroid();
+                let from = target
+                    + (DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) - 0.5).normalize()
+                        * 5.0;
+                let ray = Ray::new(from, target - from);
+                let Some(h) = shape.intersect(&ray, 0.0, f64::INFINITY) else {
+                    continue;
+                };
+                (ray.at(h.t), on, h.normal)
+            } else {
+                let y = if k % 3 == 0 { 0.0 } else { rng.uniform() * 4.0 };
+                let apex = DVec3::new(rng.uniform() * 10.0 - 5.0, y, rng.uniform() * 10.0 - 5.0);
+                (apex, 30, DVec3::Y)
+            };
+            let to_center = center - apex;
+            let Some(mut candidates) = aggregate.shadow_candidates(apex, on, to_center, radius, 64)
+            else {
+                continue;
+            };
+            culled += 1;
+            let d2 = to_center.length_squared();
+            let frame = Frame::from_z(to_center / d2.sqrt());
+            let cos_max = (1.0 - radius * radius / d2).sqrt();
+            let strata = Strata::new(32);
+            for i in 0..32 {
+                let direction = uniform_cone(&frame, cos_max, strata.point(i, &mut rng));
+                let distance = sphere_roots(DVec3::ZERO, direction, to_center, radius)
+                    .map_or(to_center.dot(direction), |(t0, _)| t0);
+                // Feelers from the far side of a solid go through it.
+                let side = if normal.dot(direction) < 0.0 {
+                    -normal
+                } else {
+                    normal
+                };
+                let feeler = Ray::spawn(apex, side, direction);
+                let t_max = distance - (feeler.origin - apex).length();
+                let full = aggregate.any_hit(&feeler, t_max);
+                assert_eq!(
+                    candidates.any_hit(&aggregate, &feeler, t_max),
+                    full,
+                    "{apex}"
+                );
+                compared += 1;
+                blocked += usize::from(full);
+            }
+        }
+        assert!(culled > 300, "{culled}");
         assert!(
             blocked > compared / 20 && blocked < compared * 19 / 20,
             "{blocked}/{compared}"

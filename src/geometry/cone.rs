@@ -217,6 +217,21 @@ impl Cone {
         )
     }
 
+    /// Whether a face plane of the cone's own box (its end planes, and
+    /// the sides at its larger radius) separates `apex` and the ball
+    /// (`center`, `radius`) from it; see `cuboid::box_separates`.
+    pub fn separates(&self, apex: DVec3, center: DVec3, radius: f64) -> bool {
+        let r = self.base_radius.max(self.cap_radius);
+        super::cuboid::box_separates(
+            &self.transform,
+            DVec3::new(-r, -r, 0.0),
+            DVec3::new(r, r, 1.0),
+            apex,
+            center,
+            radius,
+        )
+    }
+
     /// The bounding box of the placed cone.
     pub fn bounds(&self) -> Aabb {
         let r = self.base_radius.max(self.cap_radius);

@@ -83,9 +83,9 @@ pub struct Csg {
     children: Vec<CsgChild>,
     /// Each child's box (`None`: unbounded, or inverted).
     child_bounds: Vec<Option<Aabb>>,
-    /// For many children: a tree over the bounded ones (`bounded[i]` is
-    /// the child of tree item i).
-    index: Option<(Bvh, Vec<u32>)>,
+    /// For many children: a tree over the bounded ones (with the child of
+    /// each tree item), and the unbounded ones, tested by every ray.
+    index: Option<(Bvh, Vec<u32>, Vec<u32>)>,
     /// How many children are bounded (and not inverted).
     bounded_count: usize,
     bounds: Option<Aabb>,
@@ -301,7 +301,10 @@ impl Csg {
         let index = (children.len() > INDEXED_CHILDREN).then(|| {
             let bvh = Bvh::build(bounded.iter().filter_map(|&i| child_bounds[i as usize]));
             let order = bvh.order().iter().map(|&k| bounded[k as usize]).collect();
-            (bvh, order)
+            let unbounded = (0..children.len() as u32)
+                .filter(|&i| child_bounds[i as usize].is_none())
+                .collect();
+            (bvh, order, unbounded)
         });
         let bounds = match op {
             CsgOp::Union | CsgOp::Merge => child_bounds
@@ -369,11 +372,8 @@ impl Csg {
                     }
                 }
             }
-            Some((bvh, order)) => {
-                out.extend(
-                    (0..self.children.len() as u32)
-                        .filter(|&i| self.child_bounds[i as usize].is_none()),
-                );
+            Some((bvh, order, unbounded)) => {
+                out.extend(unbounded.iter().copied());
                 bvh.visit(
                     |b| line_meets(ray, b),
                     |position| {

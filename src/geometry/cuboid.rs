@@ -107,25 +107,18 @@ impl Cuboid {
         out
     }
 
-    /// Whether one face plane of the box has the point `apex` and the
-    /// whole ball (`center`, `radius`, widened by `slack`) on its outer
-    /// side: then no segment from the apex to the ball meets the box (the
-    /// box lies behind that plane). Worked in the box's own space, where
-    /// the ball's radius grows at most by the map's Frobenius norm.
+    /// Whether one face plane of the box separates the point `apex` and
+    /// the whole ball (`center`, `radius` + `slack`) from it; see
+    /// [`box_separates`].
     pub fn separates(&self, apex: DVec3, center: DVec3, radius: f64, slack: f64) -> bool {
-        let m = self.transform.to_object.matrix3;
-        let stretch =
-            (m.x_axis.length_squared() + m.y_axis.length_squared() + m.z_axis.length_squared())
-                .sqrt();
-        let (a, c) = (
-            self.transform.to_object.transform_point3(apex),
-            self.transform.to_object.transform_point3(center),
-        );
-        let r = (radius + slack) * stretch;
-        (0..3).any(|i| {
-            (a[i] >= self.max[i] && c[i] - r > self.max[i])
-                || (a[i] <= self.min[i] && c[i] + r < self.min[i])
-        })
+        box_separates(
+            &self.transform,
+            self.min,
+            self.max,
+            apex,
+            center,
+            radius + slack,
+        )
     }
 
     /// Texture coordinates at the world point `point` (see the module).
@@ -153,6 +146,32 @@ impl Cuboid {
     pub fn bounds(&self) -> Aabb {
         placed_bounds(&self.transform, self.min, self.max)
     }
+}
+
+/// Whether one face plane of the object-space box `[min, max]` placed by
+/// `transform` has the world point `apex` and the whole world ball
+/// (`center`, `radius`) on its outer side: then no segment from the apex
+/// to the ball meets the box, nor anything inside it (the box lies behind
+/// that plane). Worked in object space, where the ball's radius grows at
+/// most by the map's Frobenius norm. For shadow feelers: the floor slab
+/// under every point above it, the box a point lies on.
+pub fn box_separates(
+    transform: &Transform,
+    min: DVec3,
+    max: DVec3,
+    apex: DVec3,
+    center: DVec3,
+    radius: f64,
+) -> bool {
+    let m = transform.to_object.matrix3;
+    let stretch =
+        (m.x_axis.length_squared() + m.y_axis.length_squared() + m.z_axis.length_squared()).sqrt();
+    let (a, c) = (
+        transform.to_object.transform_point3(apex),
+        transform.to_object.transform_point3(center),
+    );
+    let r = radius * stretch;
+    (0..3).any(|i| (a[i] >= max[i] && c[i] - r > max[i]) || (a[i] <= min[i] && c[i] + r < min[i]))
 }
 
 /// The world bounding box of the object-space box `[min, max]` placed by

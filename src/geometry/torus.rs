@@ -17,7 +17,9 @@
 //! No root is lost where f changes sign, none is invented where it does
 //! not; a tangent touch (a double root, a grazing ray) is a root where
 //! |f| at a critical point is within rounding of 0. Each root is bracketed
-//! to adjacent doubles, so the point lies on the surface to within
+//! until a Newton step inside the bracket falls below 1e-14·(R + r) (or
+//! the bracket is two adjacent doubles), so the point lies on the surface
+//! to within
 //! 1e-12·(R + r) (`ROOT_TOLERANCE`).
 //!
 //! Normal: from the tube's centre circle to the point. Texture
@@ -116,18 +118,9 @@ impl Torus {
             }
         }
         cuts.push(hi);
-        // The roots of f′ in each piece: f's critical points.
-        let mut critical: ArrayVec<f64, 8> = ArrayVec::new();
-        critical.push(lo);
-        for w in cuts.windows(2) {
-            if let Some(s) = sign_change_root(&f1, &f2, w[0], w[1]) {
-                if s > lo && s < hi {
-                    critical.push(s);
-                }
-            }
-        }
-        critical.push(hi);
         let scale = (big + small).powi(4);
+        // Newton steps below this end a root's search (see ROOT_TOLERANCE).
+        let step = 1e-14 * (big + small);
         let mut roots: ArrayVec<f64, 4> = ArrayVec::new();
         // A root on a piece's end is met from both pieces: kept once; one
         // on the window's edge is outside it.
@@ -140,18 +133,28 @@ impl Torus {
                 let _ = roots.try_push(s);
             }
         };
-        for (i, w) in critical.windows(2).enumerate() {
-            if let Some(s) = sign_change_root(&f, &f1, w[0], w[1]) {
+        // f is monotone from one critical point (a root of f′, one at most
+        // per piece between the cuts) to the next: each such piece holds at
+        // most one root. Taken in order, found as they are needed, so a
+        // query for the first root stops early.
+        let mut from = lo;
+        let mut ends = cuts.windows(2).filter_map(|w| {
+            sign_change_root(&f1, &f2, w[0], w[1], step).filter(|&s| s > lo && s < hi)
+        });
+        loop {
+            let critical = ends.next();
+            let to = critical.unwrap_or(hi);
+            if let Some(s) = sign_change_root(&f, &f1, from, to, step) {
                 keep(s, &mut roots);
             }
             // A touch at an inner critical point: a double root, kept once.
-            let s = w[1];
-            if touches && i + 2 < critical.len() && f(s).abs() <= 1e-13 * scale {
-                keep(s, &mut roots);
+            if touches && critical.is_some() && f(to).abs() <= 1e-13 * scale {
+                keep(to, &mut roots);
             }
-            if first && !roots.is_empty() {
+            if critical.is_none() || (first && !roots.is_empty()) {
                 break;
             }
+            from = to;
         }
         for s in roots {
             out.push((tc + s) / len);
@@ -214,7 +217,8 @@ impl Torus {
 }
 
 /// The root of `f` in [lo, hi] where f has opposite signs at the ends
-/// (a piece where it is monotone), bracketed to adjacent doubles: Newton
+/// (a piece where it is monotone), bracketed until a Newton step inside
+/// it moves less than `tolerance` (or it is two adjacent doubles): Newton
 /// steps on `df` while they land inside the bracket and it keeps
 /// narrowing, bisection otherwise. Every value of f only narrows
 /// the bracket by its sign, so the answer is as safe as bisection's, in a
@@ -224,6 +228,7 @@ fn sign_change_root(
     df: &impl Fn(f64) -> f64,
     mut lo: f64,
     mut hi: f64,
+    tolerance: f64,
 ) -> Option<f64> {
     let (flo, fhi) = (f(lo), f(hi));
     if flo == 0.0 {
@@ -253,6 +258,11 @@ fn sign_change_root(
         }
         let width = hi - lo;
         let newton = x - fx / df(x);
+        // A Newton step this small inside the bracket: quadratic
+        // convergence puts the root within rounding of where it lands.
+        if (newton - x).abs() <= tolerance && newton > lo && newton < hi {
+            return Some(newton);
+        }
         let mut next = if newton > lo && newton < hi && width < 0.5 * width_before {
             newton
         } else {
