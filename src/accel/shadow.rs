@@ -632,7 +632,7 @@ mod tests {
         use crate::math::Transform;
         use glam::{DAffine3, DQuat};
         let mut rng = PixelRng::new(9, 4, 2);
-        let mut turn = |rng: &mut PixelRng| {
+        let turn = |rng: &mut PixelRng| {
             let axis = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) - 0.5;
             let place = DVec3::new(
                 rng.uniform() * 8.0 - 4.0,
