@@ -707,3 +707,23 @@ fn refraction_follows_the_csg_boundary_whatever_paints_a_part() {
     assert_eq!(etas, [(1.0, 1.5), (1.5, 1.0), (1.0, 1.5), (1.5, 1.0)]);
     assert_eq!(materials, ["glass", "water", "water", "glass"]);
 }
+
+#[test]
+fn a_csg_scene_renders_the_same_bits_on_any_thread_count() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/csg.toml");
+    let text = std::fs::read_to_string(path).unwrap();
+    let s = Scene::from_toml_in(&text, path, std::path::Path::new("scenes")).unwrap();
+    let film = |threads: usize| {
+        let settings = prism::RenderSettings {
+            width: 96,
+            height: 54,
+            spp: 2,
+            threads: Some(threads),
+            ..s.settings
+        };
+        prism::render(&s, &settings, &()).unwrap().film
+    };
+    let one = film(1);
+    assert!(one.pixels().iter().any(|p| p.x > 0.1), "it drew something");
+    assert_eq!(one, film(3));
+}
