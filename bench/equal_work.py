@@ -6,7 +6,9 @@ Renders the same scenes in both (bench/whitted.toml and .pov with a
 again with shadows through the glass ball (Prism's transparent_shadows),
 the soft-shadow study: a point light and two sphere lights, and the solids:
 bench/solids.toml and .pov, boxes, cylinders, cones, discs and tori under a
-16-sample sphere light, shadows through glass on both sides), without
+16-sample sphere light, shadows through glass on both sides, and the CSG
+scene: bench/csg.toml and .pov, dice, lenses, drilled balls, a glass merge,
+a glass block less a bubble, half-spaces, under the same light), without
 antialiasing, and prints each side's rays as it counts them (camera,
 reflected, refracted, shadow feelers), CPU and wall
 time from GNU time, on one thread and on all. Ray counts differ a little
@@ -16,7 +18,7 @@ script prints the ratio per ray: (POV-Ray CPU / POV-Ray rays) / (Prism CPU /
 Prism rays). A ratio above 1 means Prism is faster.
 
 Set-up: none; POV-Ray and GNU time are installed by bench/setup.sh on first run.
-Usage:  python3 bench/equal_work.py [--repeat N] [--only NAME]
+Usage:  python3 bench/equal_work.py [--repeat N] [--only NAME] [--prism BINARY]
 """
 
 import argparse
@@ -44,6 +46,10 @@ CASES = [
     # Every object a solid (box, cylinder, cone, disc, torus); the .toml sets
     # transparent_shadows, as POV-Ray's shadows pass through its glass.
     ("solids", "bench/solids.toml", "bench/solids.pov", 640, 480, []),
+    # Every object but the floor a CSG (dice, lenses, drilled balls, a glass
+    # merge, a glass block less a bubble, planes as half-spaces, an inverse
+    # sphere); transparent_shadows as in the solids.
+    ("csg", "bench/csg.toml", "bench/csg.pov", 640, 480, []),
 ]
 
 
@@ -75,11 +81,16 @@ def main():
     # slow runs (docs/performance.md, third round of issue 16).
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--only", help="run only the case of this name")
+    parser.add_argument("--prism", help="render with this Prism binary instead of building this checkout's "
+                        "(a copy stays the same while others rebuild target/ during the run)")
     args = parser.parse_args()
     if shutil.which("povray") is None or not os.path.exists("/usr/bin/time"):
         subprocess.run([os.path.join(ROOT, "bench", "setup.sh")], check=True)
-    subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
-    prism = os.path.join(ROOT, "target", "release", "prism")
+    if args.prism:
+        prism = os.path.abspath(args.prism)
+    else:
+        subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
+        prism = os.path.join(ROOT, "target", "release", "prism")
     threads_all = os.cpu_count() or 1
     with tempfile.TemporaryDirectory() as tmp:
         for name, toml, pov, w, h, edits in CASES:
