@@ -25,7 +25,7 @@
 //!   so refraction sees the CSG's boundary: a glass merge has no inner
 //!   surface, an air bubble cut from a block is entered as air.
 
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 use smallvec::SmallVec;
 
 use super::cuboid::slab_interval;
@@ -91,26 +91,22 @@ pub struct Csg {
     bounds: Option<Aabb>,
 }
 
-/// An end of an interval of the combined solid: the surface there and what
-/// shading needs of it.
+/// An end of an interval of the combined solid: the surface there. Kept
+/// small (lists of these are built and combined for every ray); what
+/// shading needs beyond the normal is found for the one end that becomes
+/// the hit.
 #[derive(Clone, Copy, Debug)]
 pub struct Boundary<'a> {
     /// Line parameter (±∞: no surface).
     pub t: f64,
     /// Outward unit normal of the set this boundary bounds.
     pub normal: DVec3,
-    /// Shading normal, on the side of `normal`.
-    pub shading_normal: DVec3,
-    /// Whether `normal` is the leaf shape's own turned round.
-    pub flipped: bool,
-    /// Texture coordinates the leaf computed while testing (meshes).
-    pub uv: DVec2,
-    /// Vertex colour (white without one).
-    pub color: DVec3,
-    /// Material of the leaf's surface.
-    pub material: u32,
     /// The leaf shape the surface belongs to (`None` at ±∞).
     pub leaf: Option<&'a Shape>,
+    /// Material of the leaf's surface.
+    pub material: u32,
+    /// Whether `normal` is the leaf shape's own turned round.
+    pub flipped: bool,
 }
 
 /// One interval of the combined solid.
@@ -131,12 +127,9 @@ impl<'a> Boundary<'a> {
         Boundary {
             t,
             normal: DVec3::ZERO,
-            shading_normal: DVec3::ZERO,
-            flipped: false,
-            uv: DVec2::ZERO,
-            color: DVec3::ONE,
-            material: 0,
             leaf: None,
+            material: 0,
+            flipped: false,
         }
     }
 
@@ -147,30 +140,23 @@ impl<'a> Boundary<'a> {
         Boundary {
             t: s.t,
             normal: s.normal,
-            shading_normal: s.normal,
-            flipped: false,
-            uv: DVec2::ZERO,
-            color: DVec3::ONE,
-            material,
             leaf: Some(leaf),
+            material,
+            flipped: false,
         }
     }
 
     /// A mesh's hit as an end; `enters` says which end, so the normal
     /// faces against the line on entry and along it on exit whichever way
     /// the mesh is wound.
-    fn of_mesh_hit(h: ShapeHit, enters: bool, direction: DVec3, leaf: &'a Shape) -> Self {
+    fn of_mesh_hit(h: &ShapeHit, enters: bool, direction: DVec3, leaf: &'a Shape) -> Self {
         let outward = (h.normal.dot(direction) < 0.0) == enters;
-        let sign = if outward { 1.0 } else { -1.0 };
         Boundary {
             t: h.t,
-            normal: sign * h.normal,
-            shading_normal: sign * h.shading_normal,
-            flipped: !outward,
-            uv: h.uv,
-            color: h.color,
-            material: h.material.unwrap_or(0),
+            normal: if outward { h.normal } else { -h.normal },
             leaf: Some(leaf),
+            material: h.material.unwrap_or(0),
+            flipped: !outward,
         }
     }
 
@@ -178,32 +164,40 @@ impl<'a> Boundary<'a> {
     fn turned(self) -> Self {
         Boundary {
             normal: -self.normal,
-            shading_normal: -self.shading_normal,
             flipped: !self.flipped,
             ..self
         }
     }
 
-    /// The hit this boundary is for `ray`.
+    /// The hit this boundary is for `ray`: the leaf's texture coordinates
+    /// (and a mesh's shading normal and colour, from its triangle there).
     pub fn hit(&self, ray: &Ray) -> ShapeHit {
-        let mut h = ShapeHit {
-            t: self.t,
-            normal: self.normal,
-            front_face: ray.direction.dot(self.normal) < 0.0,
-            shading_normal: self.shading_normal,
-            uv: self.uv,
-            color: self.color,
-            material: Some(self.material),
+        let mut h = ShapeHit::geometric(self.t, self.normal, ray.direction.dot(self.normal) < 0.0);
+        h.material = Some(self.material);
+        let Some(leaf) = self.leaf else {
+            return h;
         };
-        if let Some(leaf) = self.leaf {
-            // The leaf computes its coordinates from its own normal.
-            let own = if self.flipped {
-                -self.normal
-            } else {
-                self.normal
-            };
-            h.uv = leaf.uv(ray.at(self.t), &ShapeHit { normal: own, ..h });
+        // The leaf computes its coordinates from its own normal.
+        let own = if self.flipped {
+            -self.normal
+        } else {
+            self.normal
+        };
+        if let Shape::Mesh(m) = leaf {
+            let reach = 1e-9 * self.t.abs().max(1.0);
+            if let Some(m) = m.intersect(ray, self.t - reach, self.t + reach) {
+                let sign = if m.normal.dot(self.normal) < 0.0 {
+                    -1.0
+                } else {
+                    1.0
+                };
+                h.shading_normal = sign * m.shading_normal;
+                h.uv = m.uv;
+                h.color = m.color;
+            }
+            return h;
         }
+        h.uv = leaf.uv(ray.at(self.t), &ShapeHit { normal: own, ..h });
         h
     }
 }
@@ -281,10 +275,11 @@ pub fn complement<'a>(a: &[Span<'a>]) -> Spans<'a> {
     out
 }
 
-/// Whether the whole line of `ray` meets `b`.
+/// Whether `ray` meets `b` with t within `window`.
 #[inline]
-fn line_meets(ray: &Ray, b: &Aabb) -> bool {
-    slab_interval(ray.origin, ray.direction, b.min, b.max).is_some()
+fn meets(ray: &Ray, window: (f64, f64), b: &Aabb) -> bool {
+    slab_interval(ray.origin, ray.direction, b.min, b.max)
+        .is_some_and(|((t0, _), (t1, _))| t0 <= window.1 && t1 >= window.0)
 }
 
 impl Csg {
@@ -353,10 +348,10 @@ impl Csg {
         self.bounds
     }
 
-    /// The children whose intervals along the line of `ray` may not be
-    /// empty, ascending; `None` when one that must be met (by an
+    /// The children whose intervals along `ray` within `window` may not
+    /// be empty, ascending; `None` when one that must be met (by an
     /// intersection, or a difference's first) is not.
-    fn candidates(&self, ray: &Ray) -> Option<SmallVec<[u32; 8]>> {
+    fn candidates(&self, ray: &Ray, window: (f64, f64)) -> Option<SmallVec<[u32; 8]>> {
         let mut out: SmallVec<[u32; 8]> = SmallVec::new();
         let mut met_bounded = 0;
         match &self.index {
@@ -364,7 +359,7 @@ impl Csg {
                 for (i, b) in self.child_bounds.iter().enumerate() {
                     match b {
                         None => out.push(i as u32),
-                        Some(b) if line_meets(ray, b) => {
+                        Some(b) if meets(ray, window, b) => {
                             met_bounded += 1;
                             out.push(i as u32);
                         }
@@ -375,11 +370,11 @@ impl Csg {
             Some((bvh, order, unbounded)) => {
                 out.extend(unbounded.iter().copied());
                 bvh.visit(
-                    |b| line_meets(ray, b),
+                    |b| meets(ray, window, b),
                     |position| {
                         let child = order[position];
                         let b = self.child_bounds[child as usize];
-                        if b.is_some_and(|b| line_meets(ray, &b)) {
+                        if b.is_some_and(|b| meets(ray, window, &b)) {
                             met_bounded += 1;
                             out.push(child);
                         }
@@ -397,21 +392,24 @@ impl Csg {
         }
     }
 
-    /// Where the whole line of `ray` is inside the combined solid.
-    pub fn spans<'a>(&'a self, ray: &Ray) -> Spans<'a> {
-        let Some(candidates) = self.candidates(ray) else {
+    /// Where `ray` is inside the combined solid, exact within `window`
+    /// (the set operations work point by point, so parts that cannot
+    /// reach the window are left out; outside it the list is not the
+    /// solid's). `(−∞, +∞)`: the whole line.
+    pub fn spans<'a>(&'a self, ray: &Ray, window: (f64, f64)) -> Spans<'a> {
+        let Some(candidates) = self.candidates(ray, window) else {
             return Spans::new();
         };
         let mut ids = candidates.iter().map(|&i| &self.children[i as usize]);
         let Some(first) = ids.next() else {
             return Spans::new();
         };
-        let mut acc = child_spans(first, ray);
+        let mut acc = child_spans(first, ray, window);
         for child in ids {
             if acc.is_empty() && self.op != CsgOp::Union && self.op != CsgOp::Merge {
                 break;
             }
-            let s = child_spans(child, ray);
+            let s = child_spans(child, ray, window);
             acc = match self.op {
                 CsgOp::Union | CsgOp::Merge => unite(&acc, &s),
                 CsgOp::Intersection => intersect(&acc, &s),
@@ -424,7 +422,7 @@ impl Csg {
     /// The nearest hit with t in (t_min, t_max): the first end of a
     /// combined interval there.
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
-        let spans = self.spans(ray);
+        let spans = self.spans(ray, (t_min, t_max));
         let b = spans
             .iter()
             .flat_map(|s| [s.enter, s.exit])
@@ -434,8 +432,8 @@ impl Csg {
 }
 
 /// The intervals of one operand, complemented when it is inverted.
-fn child_spans<'a>(child: &'a CsgChild, ray: &Ray) -> Spans<'a> {
-    let spans = shape_spans(&child.shape, child.material, ray);
+fn child_spans<'a>(child: &'a CsgChild, ray: &Ray, window: (f64, f64)) -> Spans<'a> {
+    let spans = shape_spans(&child.shape, child.material, ray, window);
     if child.inverse {
         complement(&spans)
     } else {
@@ -446,16 +444,16 @@ fn child_spans<'a>(child: &'a CsgChild, ray: &Ray) -> Spans<'a> {
 /// The intervals of a shape: a CSG's own, a mesh's by crossing parity,
 /// an analytic solid's from its file. Shapes without an inside (refused
 /// when a scene is built) have none.
-fn shape_spans<'a>(shape: &'a Shape, material: u32, ray: &Ray) -> Spans<'a> {
+fn shape_spans<'a>(shape: &'a Shape, material: u32, ray: &Ray, window: (f64, f64)) -> Spans<'a> {
     let span = |i: super::span::Interval| Span {
         enter: Boundary::of_surface(i.enter, material, shape),
         exit: Boundary::of_surface(i.exit, material, shape),
     };
     match shape {
-        Shape::Csg(c) => c.spans(ray),
+        Shape::Csg(c) => c.spans(ray, window),
         Shape::Mesh(m) => m
             .inside(ray)
-            .into_iter()
+            .iter()
             .map(|(a, b)| Span {
                 enter: Boundary::of_mesh_hit(a, true, ray.direction, shape),
                 exit: Boundary::of_mesh_hit(b, false, ray.direction, shape),
