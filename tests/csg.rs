@@ -727,3 +727,60 @@ fn a_csg_scene_renders_the_same_bits_on_any_thread_count() {
     assert!(one.pixels().iter().any(|p| p.x > 0.1), "it drew something");
     assert_eq!(one, film(3));
 }
+
+#[test]
+fn a_ray_through_a_shared_edge_of_a_mesh_crosses_it_once() {
+    // Tetrahedra with tilted faces; rays along +z through points of their
+    // edge ab (x = 2y, exact in the projection), where two triangles each
+    // report the crossing (their t equal to within rounding): counted once,
+    // the ray goes in and out; counted twice, the parity would flip.
+    let dir = tempfile::tempdir().unwrap();
+    let mut rng = PixelRng::new(8, 8, 8);
+    for m in 0..12 {
+        let mut z = || (rng.uniform() * 4.0 - 2.0) as f32 as f64;
+        let v = [
+            DVec3::new(0.0, 0.0, z()),
+            DVec3::new(2.0, 1.0, z()),
+            DVec3::new(2.0, -1.0, z() - 3.0),
+            DVec3::new(-0.5, 1.5, z() + 3.0),
+        ];
+        let centre = (v[0] + v[1] + v[2] + v[3]) / 4.0;
+        let faces: Vec<[usize; 3]> = [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]
+            .into_iter()
+            .map(|[a, b, c]| {
+                // Wound to face away from the centre.
+                let n = (v[b] - v[a]).cross(v[c] - v[a]);
+                if n.dot(v[a] - centre) > 0.0 {
+                    [a, b, c]
+                } else {
+                    [a, c, b]
+                }
+            })
+            .collect();
+        let name = format!("tetra{m}.obj");
+        write_obj(dir.path(), &name, &v, &faces);
+        let s = scene_in(
+            dir.path(),
+            &format!(
+                "[[objects]]\ntype = \"intersection\"\nmaterial = \"red\"\n\
+                 [[objects.children]]\ntype = \"mesh\"\nfile = \"{name}\"\n\
+                 [[objects.children]]\ntype = \"sphere\"\nradius = 100\n"
+            ),
+        )
+        .unwrap_or_else(|e| panic!("{e}"));
+        let tetra = shape(&s);
+        for k in 1..200 {
+            let y = k as f64 / 200.0;
+            let ray = Ray::new(DVec3::new(2.0 * y, y, -10.0), DVec3::Z);
+            let hits = surfaces(tetra, &ray);
+            // In and out: one crossing at the edge, one through a far face.
+            let zs: Vec<f64> = hits.iter().map(|h| ray.at(h.t).z).collect();
+            assert_eq!(hits.len(), 2, "tetrahedron {m}, y = {y}: {zs:?}");
+            let edge_z = v[0].z + (v[1].z - v[0].z) * y;
+            assert!(
+                zs.iter().any(|z| (z - edge_z).abs() < 1e-6),
+                "tetrahedron {m}, y = {y}: edge at z = {edge_z}, hits at {zs:?}"
+            );
+        }
+    }
+}

@@ -153,8 +153,8 @@ impl Aggregate {
             color: h.color,
             primitive,
             material: h.material.unwrap_or(p.material),
-            medium: match p.shape {
-                Shape::Csg(_) => p.material,
+            medium: match &p.shape {
+                Shape::Csg(c) => c.medium().unwrap_or(h.material.unwrap_or(p.material)),
                 _ => h.material.unwrap_or(p.material),
             },
         }

@@ -89,6 +89,8 @@ pub struct Csg {
     /// How many children are bounded (and not inverted).
     bounded_count: usize,
     bounds: Option<Aabb>,
+    /// The material that fills the solid, when the CSG names one.
+    medium: Option<u32>,
 }
 
 /// An end of an interval of the combined solid: the surface there. Kept
@@ -243,10 +245,11 @@ pub fn intersect<'a>(a: &[Span<'a>], b: &[Span<'a>]) -> Spans<'a> {
         if enter.t < exit.t {
             out.push(Span { enter, exit });
         }
-        if x.exit.t <= y.exit.t {
+        // Written so that a NaN end still advances (no endless loop).
+        if x.exit.t.total_cmp(&y.exit.t).is_le() {
             i += 1;
         }
-        if y.exit.t <= x.exit.t {
+        if y.exit.t.total_cmp(&x.exit.t).is_le() {
             j += 1;
         }
     }
@@ -328,7 +331,21 @@ impl Csg {
             child_bounds,
             index,
             bounds,
+            medium: None,
         }
+    }
+
+    /// The node with `medium` filling it (the CSG's own material): its
+    /// index of refraction holds inside whichever part paints a surface.
+    pub fn with_medium(mut self, medium: Option<u32>) -> Csg {
+        self.medium = medium;
+        self
+    }
+
+    /// The material filling the solid, if the CSG names one; without one
+    /// each surface's own material stands for the medium behind it.
+    pub fn medium(&self) -> Option<u32> {
+        self.medium
     }
 
     /// The operation.

@@ -64,7 +64,8 @@ pub struct Hit {
     /// Index of the material at the hit.
     pub material: u32,
     /// The material whose index of refraction fills the solid behind the
-    /// surface: the hit's own, but for CSG the whole solid's (a child's
-    /// material paints its part of the surface; the medium is the CSG's).
+    /// surface: the hit's own, but for a CSG that names a material that
+    /// one (a part's material paints its part of the surface; the medium
+    /// is the CSG's).
     pub medium: u32,
 }

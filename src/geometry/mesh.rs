@@ -201,7 +201,10 @@ impl Mesh {
             .iter()
             .map(|p| {
                 let next = welded.len() as u32;
-                *welded.entry(p.to_array().map(f64::to_bits)).or_insert(next)
+                // + 0.0 makes −0.0 and 0.0 one position.
+                *welded
+                    .entry((*p + DVec3::ZERO).to_array().map(f64::to_bits))
+                    .or_insert(next)
             })
             .collect();
         // Each undirected edge: +1 for a <, −1 for a > direction, and a count.
@@ -249,9 +252,19 @@ impl Mesh {
         let mut out = Vec::new();
         let mut entered: Option<MeshHit> = None;
         let mut i = 0;
+        // On an edge or vertex (a barycentric weight exactly 0) the triangles
+        // sharing it each compute t from their own weights: equal to within
+        // rounding, not always to the bit.
+        let on_edge = |h: &TriangleHit| h.barycentric.min_element() == 0.0;
         while i < hits.len() {
             let t = hits[i].0;
-            let end = i + hits[i..].iter().take_while(|h| h.0 == t).count();
+            let close = 1e-12 * t.abs().max(1.0);
+            let end = i + hits[i..]
+                .iter()
+                .take_while(|h| {
+                    h.0 == t || (on_edge(&hits[i].2) && on_edge(&h.2) && h.0 - t <= close)
+                })
+                .count();
             let group = &hits[i..end];
             let crossing =
                 group.iter().all(|h| facing(h.1) > 0.0) || group.iter().all(|h| facing(h.1) < 0.0);

@@ -91,6 +91,9 @@ impl Plane {
             t: -behind / n_dot_d,
             normal: self.normal,
         };
+        if at.t.is_nan() {
+            return out;
+        }
         out.push(if n_dot_d > 0.0 {
             Interval {
                 enter: lo,

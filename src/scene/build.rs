@@ -986,7 +986,15 @@ impl Check<'_, '_> {
         let mut operands = Vec::with_capacity(if flatten { 0 } else { children.len() });
         for (i, child) in children.iter().enumerate() {
             let child_path = format!("{path}.children[{i}]");
+            let errors_before = self.diags.len();
             let built = self.object_in(&child_path, child, materials, unparsed, &inner);
+            if !flatten && built.is_empty() && self.diags.len() == errors_before {
+                let child_label = label_of(child.get_ref(), &child_path);
+                self.error(
+                    child.span(),
+                    format!("{child_label}: builds nothing (a model without meshes?), so the {} has a part missing", op.name()),
+                );
+            }
             if flatten {
                 primitives.extend(built);
                 continue;
@@ -1002,8 +1010,8 @@ impl Check<'_, '_> {
         if flatten || operands.len() != children.len() {
             return primitives;
         }
-        let csg = Csg::new(op, operands);
-        // The CSG's own material fills it (its medium); else its first part's.
+        // The CSG's own material fills it (its medium).
+        let csg = Csg::new(op, operands).with_medium(material);
         let material = material.unwrap_or(csg.children()[0].material);
         vec![Primitive {
             shape: Shape::Csg(Box::new(csg)),
