@@ -97,8 +97,7 @@ impl Cone {
 
     /// The nearest hit in (t_min, t_max), from outside or inside.
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
-        let o = self.transform.to_object.transform_point3(ray.origin);
-        let d = self.transform.to_object.transform_vector3(ray.direction);
+        let (o, d) = self.transform.ray_to_object(ray);
         let (t, n) = self
             .crossings(o, d)
             .into_iter()
@@ -118,8 +117,7 @@ impl Cone {
     /// within the slab 0 ≤ z ≤ 1. Each end takes the normal of the
     /// constraint that bounds it there (the cap's on a tie: the rim).
     pub fn inside(&self, ray: &Ray) -> Intervals {
-        let o = self.transform.to_object.transform_point3(ray.origin);
-        let d = self.transform.to_object.transform_vector3(ray.direction);
+        let (o, d) = self.transform.ray_to_object(ray);
         let inf = f64::INFINITY;
         let (r0, k) = (self.base_radius, self.slope());
         let ro = r0 + k * o.z;

@@ -61,8 +61,7 @@ pub fn slab_interval(
 impl Cuboid {
     /// The nearest hit in (t_min, t_max), from outside or inside.
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
-        let origin = self.transform.to_object.transform_point3(ray.origin);
-        let direction = self.transform.to_object.transform_vector3(ray.direction);
+        let (origin, direction) = self.transform.ray_to_object(ray);
         let ((t0, a0), (t1, a1)) = slab_interval(origin, direction, self.min, self.max)?;
         // Entering, the face looks against the ray; leaving, along it.
         let (t, axis, sign) = if t0 > t_min && t0 < t_max {
@@ -84,8 +83,7 @@ impl Cuboid {
 
     /// Where the whole line of `ray` is inside: the slab interval.
     pub fn inside(&self, ray: &Ray) -> Intervals {
-        let origin = self.transform.to_object.transform_point3(ray.origin);
-        let direction = self.transform.to_object.transform_vector3(ray.direction);
+        let (origin, direction) = self.transform.ray_to_object(ray);
         let mut out = Intervals::new();
         if let Some(((t0, a0), (t1, a1))) = slab_interval(origin, direction, self.min, self.max) {
             let face = |axis: usize, sign: f64| {
@@ -284,8 +282,7 @@ mod tests {
 
     /// Whether the ray only touches the box near t (an edge or corner).
     fn grazes(b: &Cuboid, ray: &Ray, t: f64) -> bool {
-        let o = b.transform.to_object.transform_point3(ray.origin);
-        let d = b.transform.to_object.transform_vector3(ray.direction);
+        let (o, d) = b.transform.ray_to_object(ray);
         slab_interval(o, d, b.min, b.max)
             .is_some_and(|((t0, _), (t1, _))| t1 - t0 < 2e-3 && (t - t0).abs() < 2e-3)
     }

@@ -27,8 +27,7 @@ pub struct Disc {
 impl Disc {
     /// The hit in (t_min, t_max), if any.
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
-        let o = self.transform.to_object.transform_point3(ray.origin);
-        let d = self.transform.to_object.transform_vector3(ray.direction);
+        let (o, d) = self.transform.ray_to_object(ray);
         if d.z == 0.0 {
             return None;
         }

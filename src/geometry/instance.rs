@@ -29,10 +29,7 @@ impl MeshInstance {
     fn local(&self, ray: &Ray) -> (glam::DVec3, glam::DVec3) {
         match &self.transform {
             None => (ray.origin, ray.direction),
-            Some(t) => (
-                t.to_object.transform_point3(ray.origin),
-                t.to_object.transform_vector3(ray.direction),
-            ),
+            Some(t) => t.ray_to_object(ray),
         }
     }
 

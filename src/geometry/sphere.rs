@@ -165,9 +165,7 @@ impl Ellipsoid {
     /// The nearest hit in (t_min, t_max).
     #[inline]
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
-        let to_object = &self.transform.to_object;
-        let origin = to_object.transform_point3(ray.origin);
-        let direction = to_object.transform_vector3(ray.direction);
+        let (origin, direction) = self.transform.ray_to_object(ray);
         let roots = sphere_roots(origin, direction, DVec3::ZERO, 1.0)?;
         let t = nearest_root(roots, t_min, t_max)?;
         let normal = self.transform.normal(origin + t * direction);
@@ -181,9 +179,7 @@ impl Ellipsoid {
     /// Where the whole line of `ray` is inside: between the roots of the
     /// unit sphere in object space.
     pub fn inside(&self, ray: &Ray) -> Intervals {
-        let to_object = &self.transform.to_object;
-        let origin = to_object.transform_point3(ray.origin);
-        let direction = to_object.transform_vector3(ray.direction);
+        let (origin, direction) = self.transform.ray_to_object(ray);
         let mut out = Intervals::new();
         if let Some((t0, t1)) = sphere_roots(origin, direction, DVec3::ZERO, 1.0) {
             let at = |t: f64| Surface {

@@ -164,8 +164,7 @@ impl Torus {
 
     /// The nearest hit in (t_min, t_max), from outside or inside.
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
-        let o = self.transform.to_object.transform_point3(ray.origin);
-        let d = self.transform.to_object.transform_vector3(ray.direction);
+        let (o, d) = self.transform.ray_to_object(ray);
         let t = *self.roots(o, d, true, (t_min, t_max), true).first()?;
         let p = o + t * d;
         let normal = self.transform.normal(self.object_normal(p));
@@ -180,8 +179,7 @@ impl Torus {
     /// where f changes sign (a grazing touch encloses nothing), each stretch
     /// judged by the sign of f at its middle.
     pub fn inside(&self, ray: &Ray) -> Intervals {
-        let o = self.transform.to_object.transform_point3(ray.origin);
-        let d = self.transform.to_object.transform_vector3(ray.direction);
+        let (o, d) = self.transform.ray_to_object(ray);
         let roots = self.roots(o, d, false, (f64::NEG_INFINITY, f64::INFINITY), false);
         classify_between_roots(
             &roots,

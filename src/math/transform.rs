@@ -57,6 +57,16 @@ impl Transform {
         self.to_world.transform_point3(p)
     }
 
+    /// `ray` in object space as (origin, direction): the direction is
+    /// mapped but not renormalised, so t means the same in both spaces.
+    #[inline]
+    pub fn ray_to_object(&self, ray: &crate::math::Ray) -> (DVec3, DVec3) {
+        (
+            self.to_object.transform_point3(ray.origin),
+            self.to_object.transform_vector3(ray.direction),
+        )
+    }
+
     /// Maps an object-space normal to a unit world-space normal.
     #[inline]
     pub fn normal(&self, n: DVec3) -> DVec3 {

@@ -884,7 +884,7 @@ impl Check<'_, '_> {
             }
         };
         let transform = self.transform(d.transform.as_deref().unwrap_or_default(), &label);
-        let transform = transform.and_then(|t| self.under(parent, t, desc, &label));
+        let transform = transform.and_then(|t| self.under(parent.transform, t, desc, &label));
         let errors_before = self.diags.len();
         let Some(shape) = self.analytic_shape(kind, d, desc, &label, transform) else {
             return Vec::new();
@@ -899,15 +899,15 @@ impl Check<'_, '_> {
             .collect()
     }
 
-    /// `own` placed under the parent's transform (parent after own).
+    /// `own` placed under a CSG's transform `parent` (parent after own).
     fn under(
         &mut self,
-        parent: &Parent,
+        parent: Option<Transform>,
         own: Transform,
         desc: &Spanned<ObjectDesc>,
         label: &str,
     ) -> Option<Transform> {
-        let Some(outer) = &parent.transform else {
+        let Some(outer) = parent else {
             return Some(own);
         };
         let placed = Transform::from_affine(outer.to_world * own.to_world);
@@ -968,7 +968,7 @@ impl Check<'_, '_> {
         };
         let has_transform = d.transform.as_ref().is_some_and(|t| !t.is_empty());
         let transform = if has_transform {
-            match self.under(parent, transform, desc, label) {
+            match self.under(parent.transform, transform, desc, label) {
                 Some(t) => Some(t),
                 None => return Vec::new(),
             }
@@ -1183,19 +1183,10 @@ impl Check<'_, '_> {
         let object = match (has_transform.then_some(transform), outer) {
             (own, None) => own,
             (None, Some(o)) => Some(o),
-            (Some(own), Some(o)) => {
-                let placed = Transform::from_affine(o.to_world * own.to_world);
-                if placed.is_none() {
-                    self.error(
-                        desc.span(),
-                        format!(
-                            "{label}: its transform times its CSG's is singular or out of range"
-                        ),
-                    );
-                    return Vec::new();
-                }
-                placed
-            }
+            (Some(own), Some(_)) => match self.under(outer, own, desc, label) {
+                Some(t) => Some(t),
+                None => return Vec::new(),
+            },
         };
         let light_scale = self.number(&d.light_scale, 1.0, "light_scale", VALUE);
         self.place_model_extras(
