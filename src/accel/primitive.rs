@@ -81,16 +81,49 @@ impl Shape {
     /// `geometry/span.rs`); `None` for shapes without an inside and for
     /// meshes and CSG, which answer with richer intervals of their own.
     pub fn inside(&self, ray: &Ray) -> Option<Intervals> {
-        Some(match self {
+        match self {
+            Shape::Cone(c) if c.open => None,
+            Shape::Cone(_) | Shape::Sphere(_) | Shape::Ellipsoid(_) => Some(self.intervals(ray)),
+            Shape::Plane(_) | Shape::Cuboid(_) | Shape::Torus(_) => Some(self.intervals(ray)),
+            Shape::Polygon(_) | Shape::Disc(_) | Shape::Mesh(_) | Shape::Csg(_) => None,
+        }
+    }
+
+    /// [`inside`](Self::inside) with no intervals for the shapes that
+    /// have none of their own: the form CSG's inner loop reads, the list
+    /// built where the caller keeps it (an `Option` around it costs a copy).
+    #[inline(always)]
+    pub(crate) fn intervals(&self, ray: &Ray) -> Intervals {
+        match self {
             Shape::Sphere(s) => s.inside(ray),
             Shape::Ellipsoid(e) => e.inside(ray),
             Shape::Plane(p) => p.inside(ray),
             Shape::Cuboid(b) => b.inside(ray),
             Shape::Cone(c) if !c.open => c.inside(ray),
             Shape::Torus(t) => t.inside(ray),
-            Shape::Cone(_) | Shape::Polygon(_) | Shape::Disc(_) => return None,
-            Shape::Mesh(_) | Shape::Csg(_) => return None,
-        })
+            Shape::Cone(_) | Shape::Polygon(_) | Shape::Disc(_) => Intervals::new(),
+            Shape::Mesh(_) | Shape::Csg(_) => Intervals::new(),
+        }
+    }
+
+    /// The nearest hit with t in (t_min, t_max) as a shadow feeler needs
+    /// it: distance, geometric normal and the material there (`None`: the
+    /// primitive's), without the texture coordinates CSG finds last.
+    #[inline]
+    pub fn feeler_hit(
+        &self,
+        ray: &Ray,
+        t_min: f64,
+        t_max: f64,
+    ) -> Option<(f64, DVec3, Option<u32>)> {
+        match self {
+            Shape::Csg(c) => c
+                .nearest_boundary(ray, t_min, t_max)
+                .map(|b| (b.t, b.normal, Some(b.material))),
+            other => other
+                .intersect(ray, t_min, t_max)
+                .map(|h| (h.t, h.normal, h.material)),
+        }
     }
 
     /// Whether the shape is hit with t in (t_min, t_max) (any-hit: meshes
@@ -100,6 +133,7 @@ impl Shape {
         match self {
             Shape::Mesh(m) => m.any_hit(ray, t_min, t_max),
             Shape::Sphere(s) => s.occludes(ray, t_min, t_max),
+            Shape::Csg(c) => c.nearest_boundary(ray, t_min, t_max).is_some(),
             other => other.intersect(ray, t_min, t_max).is_some(),
         }
     }

@@ -231,12 +231,12 @@ impl ShadowCandidates {
         let mut closest = t_max;
         for &i in &self.primitives[..self.len] {
             let p = &aggregate.primitives[i as usize];
-            if let Some(h) = p.shape.intersect(feeler, 0.0, closest) {
-                closest = h.t;
+            if let Some((t, normal, material)) = p.shape.feeler_hit(feeler, 0.0, closest) {
+                closest = t;
                 found = Some(Blocker {
-                    t: h.t,
-                    normal: h.normal,
-                    material: h.material.unwrap_or(p.material),
+                    t,
+                    normal,
+                    material: material.unwrap_or(p.material),
                 });
             }
         }
@@ -439,13 +439,14 @@ impl ShadowCandidates {
                         if !feelers.active[k] {
                             continue;
                         }
-                        if let Some(h) = shape.intersect(&feelers.ray(k), 0.0, closest[k]) {
-                            closest[k] = h.t;
+                        let hit = shape.feeler_hit(&feelers.ray(k), 0.0, closest[k]);
+                        if let Some((t, normal, material)) = hit {
+                            closest[k] = t;
                             nearest[k] = slot as u32;
                             found[k] = Some(Blocker {
-                                t: h.t,
-                                normal: h.normal,
-                                material: h.material.unwrap_or(p.material),
+                                t,
+                                normal,
+                                material: material.unwrap_or(p.material),
                             });
                         }
                     }

@@ -26,7 +26,7 @@
 //!   surface, an air bubble cut from a block is entered as air.
 
 use glam::DVec3;
-use smallvec::SmallVec;
+use smallvec::{Array, SmallVec};
 
 use super::cuboid::slab_interval;
 use super::span::Surface;
@@ -208,6 +208,32 @@ impl<'a> Boundary<'a> {
 /// A's boundary is kept.
 pub fn unite<'a>(a: &[Span<'a>], b: &[Span<'a>]) -> Spans<'a> {
     let mut out = Spans::new();
+    unite_into(a, b, &mut out);
+    out
+}
+
+/// A ∩ B. Each interval runs from the later entry to the earlier exit;
+/// on equal parameters A's boundary is kept; empty results are dropped.
+pub fn intersect<'a>(a: &[Span<'a>], b: &[Span<'a>]) -> Spans<'a> {
+    let mut out = Spans::new();
+    intersect_into(a, b, &mut out);
+    out
+}
+
+/// ¬A over the whole line, its boundaries A's turned round.
+pub fn complement<'a>(a: &[Span<'a>]) -> Spans<'a> {
+    let mut out = Spans::new();
+    complement_into(a, &mut out);
+    out
+}
+
+/// `unite`, appending to `out`.
+fn unite_into<'a, A: Array<Item = Span<'a>>>(
+    a: &[Span<'a>],
+    b: &[Span<'a>],
+    out: &mut SmallVec<A>,
+) {
+    let first = out.len();
     let (mut i, mut j) = (0, 0);
     while i < a.len() || j < b.len() {
         let next = if j >= b.len() || (i < a.len() && a[i].enter.t <= b[j].enter.t) {
@@ -217,7 +243,7 @@ pub fn unite<'a>(a: &[Span<'a>], b: &[Span<'a>]) -> Spans<'a> {
             j += 1;
             b[j - 1]
         };
-        match out.last_mut() {
+        match out[first..].last_mut() {
             Some(last) if next.enter.t <= last.exit.t => {
                 if next.exit.t > last.exit.t {
                     last.exit = next.exit;
@@ -226,13 +252,14 @@ pub fn unite<'a>(a: &[Span<'a>], b: &[Span<'a>]) -> Spans<'a> {
             _ => out.push(next),
         }
     }
-    out
 }
 
-/// A ∩ B. Each interval runs from the later entry to the earlier exit;
-/// on equal parameters A's boundary is kept; empty results are dropped.
-pub fn intersect<'a>(a: &[Span<'a>], b: &[Span<'a>]) -> Spans<'a> {
-    let mut out = Spans::new();
+/// `intersect`, appending to `out`.
+fn intersect_into<'a, A: Array<Item = Span<'a>>>(
+    a: &[Span<'a>],
+    b: &[Span<'a>],
+    out: &mut SmallVec<A>,
+) {
     let (mut i, mut j) = (0, 0);
     while i < a.len() && j < b.len() {
         let (x, y) = (&a[i], &b[j]);
@@ -253,12 +280,10 @@ pub fn intersect<'a>(a: &[Span<'a>], b: &[Span<'a>]) -> Spans<'a> {
             j += 1;
         }
     }
-    out
 }
 
-/// ¬A over the whole line, its boundaries A's turned round.
-pub fn complement<'a>(a: &[Span<'a>]) -> Spans<'a> {
-    let mut out = Spans::new();
+/// `complement`, appending to `out`.
+fn complement_into<'a, A: Array<Item = Span<'a>>>(a: &[Span<'a>], out: &mut SmallVec<A>) {
     let mut from = Boundary::at_infinity(f64::NEG_INFINITY);
     for s in a {
         if from.t < s.enter.t {
@@ -275,7 +300,56 @@ pub fn complement<'a>(a: &[Span<'a>]) -> Spans<'a> {
             exit: Boundary::at_infinity(f64::INFINITY),
         });
     }
-    out
+}
+
+/// The interval lists of one query under way, on the caller's stack:
+/// each node builds its list at the end of `stack`, its operands' lists
+/// above its own, and combines them through `spare`. Lists are moved only
+/// as long as they are (a handful of spans), never returned by value.
+struct Work<'a> {
+    window: (f64, f64),
+    stack: SmallVec<[Span<'a>; 8]>,
+    spare: SmallVec<[Span<'a>; 8]>,
+}
+
+impl<'a> Work<'a> {
+    #[inline(always)]
+    fn new(window: (f64, f64)) -> Self {
+        Work {
+            window,
+            stack: SmallVec::new(),
+            spare: SmallVec::new(),
+        }
+    }
+
+    /// Replaces `stack[from..]` by `spare`'s list.
+    fn settle(&mut self, from: usize) {
+        self.stack.truncate(from);
+        self.stack.extend_from_slice(&self.spare);
+        self.spare.clear();
+    }
+
+    /// Turns `stack[from..]` into its complement.
+    fn complement_from(&mut self, from: usize) {
+        self.spare.clear();
+        complement_into(&self.stack[from..], &mut self.spare);
+        self.settle(from);
+    }
+
+    /// Combines `stack[base..mid]` (the result so far) with `stack[mid..]`
+    /// (the next operand's list) by `op`, leaving the result at `base`.
+    fn combine(&mut self, op: CsgOp, base: usize, mid: usize) {
+        if op == CsgOp::Difference {
+            self.complement_from(mid);
+        }
+        self.spare.clear();
+        let (acc, next) = self.stack[base..].split_at(mid - base);
+        match op {
+            CsgOp::Union | CsgOp::Merge => unite_into(acc, next, &mut self.spare),
+            CsgOp::Intersection | CsgOp::Difference => intersect_into(acc, next, &mut self.spare),
+        }
+        self.settle(base);
+    }
 }
 
 /// Whether `ray` meets `b` with t within `window`.
@@ -414,72 +488,83 @@ impl Csg {
     /// reach the window are left out; outside it the list is not the
     /// solid's). `(−∞, +∞)`: the whole line.
     pub fn spans<'a>(&'a self, ray: &Ray, window: (f64, f64)) -> Spans<'a> {
-        let Some(candidates) = self.candidates(ray, window) else {
-            return Spans::new();
+        let mut work = Work::new(window);
+        self.spans_into(ray, &mut work);
+        work.stack.into_iter().collect()
+    }
+
+    /// `spans`, appended to `work.stack`.
+    fn spans_into<'a>(&'a self, ray: &Ray, work: &mut Work<'a>) {
+        let Some(candidates) = self.candidates(ray, work.window) else {
+            return;
         };
+        let base = work.stack.len();
         let mut ids = candidates.iter().map(|&i| &self.children[i as usize]);
         let Some(first) = ids.next() else {
-            return Spans::new();
+            return;
         };
-        let mut acc = child_spans(first, ray, window);
+        child_spans_into(first, ray, work);
+        let joins = matches!(self.op, CsgOp::Union | CsgOp::Merge);
         for child in ids {
-            if acc.is_empty() && self.op != CsgOp::Union && self.op != CsgOp::Merge {
+            let mid = work.stack.len();
+            if mid == base && !joins {
                 break;
             }
-            let s = child_spans(child, ray, window);
-            acc = match self.op {
-                CsgOp::Union | CsgOp::Merge => unite(&acc, &s),
-                CsgOp::Intersection => intersect(&acc, &s),
-                CsgOp::Difference => intersect(&acc, &complement(&s)),
-            };
+            child_spans_into(child, ray, work);
+            work.combine(self.op, base, mid);
         }
-        acc
     }
 
     /// The nearest hit with t in (t_min, t_max): the first end of a
     /// combined interval there.
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
-        let spans = self.spans(ray, (t_min, t_max));
-        let b = spans
+        Some(self.nearest_boundary(ray, t_min, t_max)?.hit(ray))
+    }
+
+    /// The surface of the nearest hit with t in (t_min, t_max), before
+    /// its texture coordinates are found: all a shadow feeler needs.
+    pub fn nearest_boundary(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Boundary<'_>> {
+        if self.bounds.is_some_and(|b| !meets(ray, (t_min, t_max), &b)) {
+            return None;
+        }
+        let mut work = Work::new((t_min, t_max));
+        self.spans_into(ray, &mut work);
+        work.stack
             .iter()
             .flat_map(|s| [s.enter, s.exit])
-            .find(|b| b.t > t_min && b.t < t_max)?;
-        Some(b.hit(ray))
+            .find(|b| b.t > t_min && b.t < t_max)
     }
 }
 
-/// The intervals of one operand, complemented when it is inverted.
-fn child_spans<'a>(child: &'a CsgChild, ray: &Ray, window: (f64, f64)) -> Spans<'a> {
-    let spans = shape_spans(&child.shape, child.material, ray, window);
+/// The intervals of one operand, complemented when it is inverted,
+/// appended to `work.stack`.
+fn child_spans_into<'a>(child: &'a CsgChild, ray: &Ray, work: &mut Work<'a>) {
+    let from = work.stack.len();
+    shape_spans_into(&child.shape, child.material, ray, work);
     if child.inverse {
-        complement(&spans)
-    } else {
-        spans
+        work.complement_from(from);
     }
 }
 
 /// The intervals of a shape: a CSG's own, a mesh's by crossing parity,
 /// an analytic solid's from its file. Shapes without an inside (refused
 /// when a scene is built) have none.
-fn shape_spans<'a>(shape: &'a Shape, material: u32, ray: &Ray, window: (f64, f64)) -> Spans<'a> {
+fn shape_spans_into<'a>(shape: &'a Shape, material: u32, ray: &Ray, work: &mut Work<'a>) {
     let span = |i: super::span::Interval| Span {
         enter: Boundary::of_surface(i.enter, material, shape),
         exit: Boundary::of_surface(i.exit, material, shape),
     };
     match shape {
-        Shape::Csg(c) => c.spans(ray, window),
-        Shape::Mesh(m) => m
-            .inside(ray)
-            .iter()
-            .map(|(a, b)| Span {
-                enter: Boundary::of_mesh_hit(a, true, ray.direction, shape),
-                exit: Boundary::of_mesh_hit(b, false, ray.direction, shape),
-            })
-            .collect(),
-        other => other
-            .inside(ray)
-            .map(|v| v.into_iter().map(span).collect())
-            .unwrap_or_default(),
+        Shape::Csg(c) => c.spans_into(ray, work),
+        Shape::Mesh(m) => work.stack.extend(m.inside(ray).iter().map(|(a, b)| Span {
+            enter: Boundary::of_mesh_hit(a, true, ray.direction, shape),
+            exit: Boundary::of_mesh_hit(b, false, ray.direction, shape),
+        })),
+        other => {
+            for i in &other.intervals(ray) {
+                work.stack.push(span(*i));
+            }
+        }
     }
 }
 
