@@ -1,6 +1,7 @@
-//! Cameras: from a point on the film to a primary ray.
+//! Cameras: from a point on the film (and, with a thin lens, a point on
+//! the lens) to a primary ray.
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 
 use crate::math::Ray;
 use crate::math::transcendental;
@@ -46,6 +47,21 @@ pub struct Camera {
     pub up: DVec3,
     /// Projection.
     pub projection: Projection,
+    /// A thin lens (depth of field); `None`: a pinhole.
+    pub lens: Option<ThinLens>,
+}
+
+/// A thin lens in front of the film (pbrt's `lensradius` and
+/// `focaldistance`, Ray Tracing in One Weekend's defocus disk): points on
+/// the plane `focus_distance` along the view direction are sharp, others
+/// spread over a circle of confusion.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ThinLens {
+    /// Radius of the lens in world units (> 0).
+    pub radius: f64,
+    /// Distance from the lens to the plane in focus, along the view
+    /// direction (> 0).
+    pub focus_distance: f64,
 }
 
 impl Camera {
@@ -65,6 +81,7 @@ impl Camera {
             right,
             up: right.cross(forward),
             projection,
+            lens: None,
         })
     }
 
@@ -102,6 +119,27 @@ impl Camera {
 }
 
 impl Camera {
+    /// The ray of film point (x, y) (as in [`ray`](Self::ray)) through the
+    /// point `disk` of the unit disk on the lens. The pinhole ray meets the
+    /// plane in focus at P; the ray leaves the lens at
+    /// position + radius·(disk.x·right + disk.y·up) towards P, so
+    /// everything on that plane images where the pinhole images it. An
+    /// orthographic film gets the same lens in front of each film point
+    /// (pbrt's way): its parallel rays converge on the plane in focus.
+    /// Without a lens, the pinhole ray itself.
+    #[inline]
+    pub fn ray_through_lens(&self, x: f64, y: f64, width: u32, height: u32, disk: DVec2) -> Ray {
+        let pinhole = self.ray(x, y, width, height);
+        let Some(lens) = self.lens else {
+            return pinhole;
+        };
+        // The pinhole ray's direction is unit: it reaches the plane in
+        // focus after focus_distance / cos θ.
+        let focus = pinhole.at(lens.focus_distance / pinhole.direction.dot(self.forward));
+        let origin = pinhole.origin + lens.radius * (disk.x * self.right + disk.y * self.up);
+        Ray::new(origin, focus - origin)
+    }
+
     /// Where `point` appears on the film of a `width` × `height` image, in
     /// pixels from the top-left corner: the inverse of [`ray`](Self::ray).
     /// `None` for points behind a perspective camera.
@@ -204,6 +242,76 @@ mod tests {
         assert_eq!(a.direction, -DVec3::Z);
         assert_eq!(a.origin, DVec3::new(-4.0, 2.0, 5.0));
         assert_eq!(b.origin, DVec3::new(4.0, -2.0, 5.0));
+    }
+
+    /// `perspective` with a lens of radius 0.25 focused 4 units away.
+    fn with_lens(mut camera: Camera) -> Camera {
+        camera.lens = Some(ThinLens {
+            radius: 0.25,
+            focus_distance: 4.0,
+        });
+        camera
+    }
+
+    #[test]
+    fn the_plane_in_focus_images_as_the_pinhole_does() {
+        let ortho = Projection::Orthographic { view_height: 4.0 };
+        let ortho = Camera::look_at(DVec3::new(0.0, 0.0, 5.0), DVec3::ZERO, DVec3::Y, ortho);
+        for camera in [perspective(FovAxis::Vertical), ortho.unwrap()] {
+            let lens = with_lens(camera);
+            for (x, y) in [(0.5, 0.5), (123.25, 77.0), (320.0, 240.0)] {
+                let pinhole = camera.ray(x, y, 640, 480);
+                let depth = |p: DVec3| (p - camera.position).dot(camera.forward);
+                let target = pinhole.at(4.0 / pinhole.direction.dot(camera.forward));
+                for disk in [
+                    DVec2::ZERO,
+                    DVec2::X,
+                    DVec2::new(-0.6, 0.8),
+                    DVec2::splat(0.5),
+                ] {
+                    let r = lens.ray_through_lens(x, y, 640, 480, disk);
+                    let offset = r.origin - pinhole.origin;
+                    assert!((offset.length() - 0.25 * disk.length()).abs() < 1e-15);
+                    assert!(offset.dot(camera.forward).abs() < 1e-15);
+                    let p = r.at(depth(target) / r.direction.dot(camera.forward));
+                    assert!((p - target).length() < 1e-13, "{p} {target}");
+                }
+                // No lens: the pinhole ray, to the bit.
+                assert_eq!(camera.ray_through_lens(x, y, 640, 480, DVec2::X), pinhole);
+            }
+        }
+    }
+
+    /// A point at depth d seen through the lens's edge appears displaced
+    /// from its pinhole image by the thin lens's circle of confusion,
+    /// c = f·A·|1/d − 1/F| pixels (f: the focal length in pixels, h / 2
+    /// tan(fov/2); A the lens radius; F the focus distance).
+    #[test]
+    fn a_point_off_the_plane_in_focus_spreads_over_the_circle_of_confusion() {
+        let camera = with_lens(perspective(FovAxis::Vertical));
+        // 90° vertical over 480 pixels: f = 240 / tan 45°.
+        let f = 240.0;
+        for (point, disk) in [
+            (DVec3::new(0.3, -0.2, 3.0), DVec2::X),
+            (DVec3::new(-1.0, 0.5, -4.0), DVec2::new(0.6, -0.8)),
+        ] {
+            let d = camera.position.z - point.z;
+            // The ray from the lens point through the point meets the plane
+            // in focus where the film point that sees it aims.
+            let lens_point = camera.position + 0.25 * (disk.x * camera.right + disk.y * camera.up);
+            let towards = (point - lens_point).normalize();
+            let on_focus = lens_point + towards * (4.0 / towards.dot(camera.forward));
+            let seen = camera.project(on_focus, 640, 480).unwrap();
+            let pinhole = camera.project(point, 640, 480).unwrap();
+            let spread = (seen.0 - pinhole.0).hypot(seen.1 - pinhole.1);
+            let c = f * 0.25 * (1.0 / d - 1.0 / 4.0).abs();
+            assert!((spread - c).abs() < 1e-9, "{spread} vs {c}");
+            // And that film point's ray through that lens point passes
+            // through the point.
+            let r = camera.ray_through_lens(seen.0, seen.1, 640, 480, disk);
+            let miss = (point - r.origin).cross(r.direction).length();
+            assert!(miss < 1e-12, "{miss}");
+        }
     }
 
     #[test]

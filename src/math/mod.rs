@@ -2,6 +2,7 @@
 //! the per-pixel random streams.
 
 pub mod frame;
+pub mod permutation;
 pub mod ray;
 pub mod rng;
 pub mod sampling;
