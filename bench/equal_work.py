@@ -4,7 +4,8 @@
 Renders the same scenes in both (bench/whitted.toml and .pov with a
 16-sample sphere light, the same with 64 samples (8×8 area light), that
 again with shadows through the glass ball (Prism's transparent_shadows),
-the soft-shadow study: a point light and two sphere lights, and the solids:
+the soft-shadow study: a point light and two sphere lights, the Whitted
+scene under a 16-feeler rectangle light (POV-Ray: a 4×4 area light), the solids:
 bench/solids.toml and .pov, boxes, cylinders, cones, discs and tori under a
 16-sample sphere light, shadows through glass on both sides, and the CSG
 scene: bench/csg.toml and .pov, dice, lenses, drilled balls, a glass merge,
@@ -43,6 +44,15 @@ CASES = [
      [("samples = 16", "samples = 64"), ("4, 4 circular", "8, 8 circular"),
       ("[render]\n", "[render]\ntransparent_shadows = true\n")]),
     ("soft-shadows", "scenes/soft-shadows.toml", "bench/soft-shadows.pov", 720, 300, []),
+    # The Whitted scene under a 1 × 1 rectangle light of 16 feelers where
+    # the sphere light was; POV-Ray: a 4×4 (rectangular) area light of the
+    # same size. POV-Ray's area light is 16 point lights with no cos θ′/d²
+    # weighting, so the two pictures differ in brightness, not in work.
+    ("area-16", "bench/whitted.toml", "bench/whitted.pov", 640, 480,
+     [('type = "sphere"\nposition = [4.0, 9.0, 7.0]\nradius = 0.5\n',
+       'type = "rectangle"\nposition = [4.0, 9.0, 7.0]\nedge_u = [1.0, 0.0, 0.0]\nedge_v = [0.0, 0.0, 1.0]\n'),
+      ("intensity = 1.0\n\n# The floor", "intensity = 150.0\n\n# The floor"),
+      ("4, 4 circular orient", "4, 4")]),
     # Every object a solid (box, cylinder, cone, disc, torus); the .toml sets
     # transparent_shadows, as POV-Ray's shadows pass through its glass.
     ("solids", "bench/solids.toml", "bench/solids.pov", 640, 480, []),

@@ -1,6 +1,15 @@
-//! Light sources: points, directions and spheres (lights with volume, which
-//! cast soft shadows). A light is sampled into directions towards it; the
+//! Light sources: points, directions, spots, spheres and area lights
+//! (rectangles and disks); the last three have volume or extent and cast
+//! soft shadows. A light is sampled into directions towards it; the
 //! shading code sends one shadow feeler along each.
+//!
+//! Area lights are uniform Lambertian emitters: their `radiance` is the
+//! radiance L leaving every point of the emitting side, so a point sees
+//! the irradiance E = ∫ L cos θ dω over the area (Lambert's formula), and
+//! the light's power is π·A·L. They are sampled by area, one stratum of
+//! the rectangle (or, by the concentric map, of the disk) per feeler, each
+//! weighted by A·cos θ′/d² (θ′ at the light): an unbiased estimate of that
+//! integral.
 
 use arrayvec::ArrayVec;
 use glam::{DVec2, DVec3};
@@ -8,7 +17,7 @@ use glam::{DVec2, DVec3};
 use crate::accel::simd;
 use crate::math::Frame;
 use crate::math::rng::PixelRng;
-use crate::math::sampling::{Strata, cone_direction, cone_polar, uniform_cone};
+use crate::math::sampling::{Strata, concentric_disk, cone_direction, cone_polar, uniform_cone};
 use crate::math::transcendental::sin_cos_turns;
 
 /// How many samples [`LightSampler::sample_batch`] draws at once.
@@ -52,6 +61,94 @@ pub enum LightShape {
         /// Shadow feelers per shading point.
         samples: u32,
     },
+    /// A flat uniform Lambertian emitter: a rectangle (a parallelogram
+    /// when its edges are not perpendicular) or a disk (an ellipse when
+    /// its axes differ), `center + x·axis_u + y·axis_v` for (x, y) in the
+    /// square [−1, 1]² or the unit disk.
+    Area {
+        /// Centre.
+        center: DVec3,
+        /// Half the first edge (rectangle) or the first radius (disk).
+        axis_u: DVec3,
+        /// Half the second edge, or the second radius.
+        axis_v: DVec3,
+        /// Unit normal of the emitting side, along axis_u × axis_v.
+        normal: DVec3,
+        /// The outline.
+        outline: AreaOutline,
+        /// Whether both sides emit (else only the side `normal` faces).
+        two_sided: bool,
+        /// Shadow feelers per shading point.
+        samples: u32,
+    },
+}
+
+/// The outline of an area light.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AreaOutline {
+    /// The parallelogram of the two axes.
+    Rectangle,
+    /// The ellipse of the two axes (a disk when they are equal).
+    Disk,
+}
+
+impl LightShape {
+    /// The kind as the scene format names it.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            LightShape::Point { .. } => "point",
+            LightShape::Directional { .. } => "directional",
+            LightShape::Spot { .. } => "spot",
+            LightShape::Sphere { .. } => "sphere",
+            LightShape::Area {
+                outline: AreaOutline::Rectangle,
+                ..
+            } => "rectangle",
+            LightShape::Area {
+                outline: AreaOutline::Disk,
+                ..
+            } => "disk",
+        }
+    }
+
+    /// Shadow feelers the light sends from each shading point it lights.
+    pub fn feelers(&self) -> u32 {
+        match *self {
+            LightShape::Sphere { samples, .. } | LightShape::Area { samples, .. } => samples,
+            _ => 1,
+        }
+    }
+
+    /// An area light's area: |axis_u × axis_v| times 4 (rectangle) or π
+    /// (disk); 0 for the other shapes.
+    pub fn area(&self) -> f64 {
+        match *self {
+            LightShape::Area {
+                axis_u,
+                axis_v,
+                outline,
+                ..
+            } => {
+                let scale = match outline {
+                    AreaOutline::Rectangle => 4.0,
+                    AreaOutline::Disk => std::f64::consts::PI,
+                };
+                scale * axis_u.cross(axis_v).length()
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// The area light's point at (x, y) of the square [−1, 1]² (rectangle)
+    /// or the unit disk, from a point `u` of the unit square.
+    #[inline]
+    fn area_point(center: DVec3, axis_u: DVec3, axis_v: DVec3, outline: AreaOutline, u: DVec2) -> DVec3 {
+        let p = match outline {
+            AreaOutline::Rectangle => 2.0 * u - DVec2::ONE,
+            AreaOutline::Disk => concentric_disk(u),
+        };
+        center + p.x * axis_u + p.y * axis_v
+    }
 }
 
 /// A light source.
@@ -75,6 +172,17 @@ pub struct LightSample {
     pub distance: f64,
     /// Distance falloff factor (1 without inverse-square falloff).
     pub falloff: f64,
+}
+
+impl LightSample {
+    /// Whether the sample gives a point of normal `n` nothing, so that no
+    /// feeler need go: the light lies behind the surface (N·L ≤ 0) or the
+    /// point sees the back of a one-sided area light (weight 0). NaN is
+    /// not unlit: it is traced, and shows.
+    #[inline]
+    pub fn unlit(&self, n: DVec3) -> bool {
+        n.dot(self.direction) <= 0.0 || self.falloff == 0.0
+    }
 }
 
 /// The samples of one light as seen from one shading point: the set-up
@@ -102,6 +210,41 @@ pub enum LightSampler {
         /// One stratum of directions per sample.
         strata: Strata,
     },
+    /// Points on an area light, one per stratum of its parameter square.
+    Area {
+        /// The shading point.
+        point: DVec3,
+        /// The light's centre, axes, normal, outline and sidedness, as
+        /// in [`LightShape::Area`].
+        center: DVec3,
+        /// As in [`LightShape::Area`].
+        axis_u: DVec3,
+        /// As in [`LightShape::Area`].
+        axis_v: DVec3,
+        /// As in [`LightShape::Area`].
+        normal: DVec3,
+        /// As in [`LightShape::Area`].
+        outline: AreaOutline,
+        /// As in [`LightShape::Area`].
+        two_sided: bool,
+        /// The light's area.
+        area: f64,
+        /// One stratum of the square per sample.
+        strata: Strata,
+    },
+}
+
+/// The weight of a feeler from a point to a point of an area light, d
+/// away in unit direction `towards`: A·cos θ′/d² (the solid angle a piece
+/// of the area covers, per unit of the area's share; θ′ between the
+/// light's normal and the way back), 0 where the point sees the back of a
+/// one-sided light. d² is bounded below as for point lights.
+#[inline]
+pub fn area_weight(area: f64, normal: DVec3, towards: DVec3, distance_squared: f64, two_sided: bool) -> f64 {
+    let cos = -normal.dot(towards);
+    let cos = if two_sided { cos.abs() } else { cos.max(0.0) };
+    const NEAREST: f64 = crate::limits::MIN_LENGTH * crate::limits::MIN_LENGTH;
+    area * cos / distance_squared.max(NEAREST)
 }
 
 impl Light {
@@ -154,6 +297,25 @@ impl Light {
                     strata: Strata::new(samples as usize),
                 }
             }
+            LightShape::Area {
+                center,
+                axis_u,
+                axis_v,
+                normal,
+                outline,
+                two_sided,
+                samples,
+            } => LightSampler::Area {
+                point,
+                center,
+                axis_u,
+                axis_v,
+                normal,
+                outline,
+                two_sided,
+                area: self.shape.area(),
+                strata: Strata::new(samples as usize),
+            },
         }
     }
 
@@ -187,18 +349,36 @@ impl LightSampler {
     pub fn count(&self) -> usize {
         match self {
             LightSampler::Fixed(_) => 1,
-            LightSampler::Cone { strata, .. } => strata.len(),
+            LightSampler::Cone { strata, .. } | LightSampler::Area { strata, .. } => strata.len(),
         }
     }
 
     /// For a sphere light, the vector from the shading point to its
-    /// centre and its radius: every feeler lies in their convex hull.
+    /// centre and its radius: every feeler lies in their convex hull. For
+    /// an area light, the same for the smallest ball about its centre
+    /// that holds it.
     pub fn light_sphere(&self) -> Option<(DVec3, f64)> {
         match *self {
             LightSampler::Fixed(_) => None,
             LightSampler::Cone {
                 to_center, radius, ..
             } => Some((to_center, radius)),
+            LightSampler::Area {
+                point,
+                center,
+                axis_u,
+                axis_v,
+                outline,
+                ..
+            } => {
+                let radius = match outline {
+                    // The farther corner.
+                    AreaOutline::Rectangle => (axis_u + axis_v).length().max((axis_u - axis_v).length()),
+                    // The longer axis (an ellipse lies within its circle).
+                    AreaOutline::Disk => axis_u.length().max(axis_v.length()),
+                };
+                Some((center - point, radius))
+            }
         }
     }
 
@@ -224,6 +404,41 @@ impl LightSampler {
                     falloff,
                 }
             }
+            LightSampler::Area { .. } => {
+                let jitter = DVec2::new(rng.uniform(), rng.uniform());
+                self.area_sample(index, jitter)
+            }
+        }
+    }
+
+    /// Area light sample `index` at `jitter` across its stratum.
+    #[inline(always)]
+    fn area_sample(&self, index: usize, jitter: DVec2) -> LightSample {
+        let LightSampler::Area {
+            point,
+            center,
+            axis_u,
+            axis_v,
+            normal,
+            outline,
+            two_sided,
+            area,
+            strata,
+        } = *self
+        else {
+            unreachable!("area_sample of an area light only");
+        };
+        let on_light = LightShape::area_point(center, axis_u, axis_v, outline, strata.point_at(index, jitter));
+        let to_light = on_light - point;
+        let distance_squared = to_light.length_squared();
+        let distance = distance_squared.sqrt();
+        // A point on the light itself has no direction towards it: zero,
+        // which the shading skips, as for point lights.
+        let direction = if distance > 0.0 { to_light / distance } else { DVec3::ZERO };
+        LightSample {
+            direction,
+            distance,
+            falloff: area_weight(area, normal, direction, distance_squared, two_sided),
         }
     }
 
@@ -256,6 +471,14 @@ impl LightSampler {
         let wanted = self.count().saturating_sub(first).min(SAMPLE_BATCH);
         match *self {
             LightSampler::Fixed(s) => out.extend(std::iter::repeat_n(s, wanted)),
+            LightSampler::Area { .. } => {
+                let mut draws = [0.0; 2 * SAMPLE_BATCH];
+                rng.fill_uniform(&mut draws[..2 * wanted]);
+                out.extend((0..wanted).map(|k| {
+                    let jitter = DVec2::new(draws[2 * k], draws[2 * k + 1]);
+                    self.area_sample(first + k, jitter)
+                }));
+            }
             LightSampler::Cone {
                 frame,
                 cos_max,

@@ -746,6 +746,17 @@ impl Check<'_, '_> {
                 );
             }
         };
+        let area = matches!(kind, LightKind::Rectangle | LightKind::Disk);
+        if !area {
+            for (span, key) in [
+                (d.edge_u.as_ref().map(Spanned::span), "edge_u"),
+                (d.edge_v.as_ref().map(Spanned::span), "edge_v"),
+                (d.normal.as_ref().map(Spanned::span), "normal"),
+                (d.two_sided.as_ref().map(Spanned::span), "two_sided"),
+            ] {
+                reject(self, span, key);
+            }
+        }
         if kind != LightKind::Spot {
             reject(
                 self,
@@ -823,6 +834,60 @@ impl Check<'_, '_> {
                 }
                 LightShape::Directional {
                     direction: self.direction(d.direction.as_ref()?, "direction"),
+                }
+            }
+            LightKind::Rectangle | LightKind::Disk => {
+                needs(self, d.position.is_some(), "position");
+                reject(self, d.direction.as_ref().map(Spanned::span), "direction");
+                if d.falloff.is_some() {
+                    // Radiance: the cos θ′/d² of Lambert's law is the falloff.
+                    self.error(
+                        desc.span(),
+                        format!("{label}: `falloff` does not apply to a {} light (its intensity is radiance; Lambert's law gives the falloff)", kind.name()),
+                    );
+                }
+                let position = self.at_frame(&d.position);
+                let center = position.as_ref().map(|p| self.point(p, "position"))?;
+                let samples = self.count(&d.samples, 16, "samples", limits::MAX_LIGHT_SAMPLES);
+                let two_sided = d.two_sided.as_ref().is_some_and(|b| *b.get_ref());
+                let (axis_u, axis_v, outline) = if kind == LightKind::Rectangle {
+                    needs(self, d.edge_u.is_some(), "edge_u");
+                    needs(self, d.edge_v.is_some(), "edge_v");
+                    reject(self, d.radius.as_ref().map(Spanned::span), "radius");
+                    reject(self, d.normal.as_ref().map(Spanned::span), "normal");
+                    let edge_u = self.vector(d.edge_u.as_ref()?, "edge_u");
+                    let edge_v = self.vector(d.edge_v.as_ref()?, "edge_v");
+                    (0.5 * edge_u, 0.5 * edge_v, AreaOutline::Rectangle)
+                } else {
+                    needs(self, d.normal.is_some(), "normal");
+                    for (span, key) in [
+                        (d.edge_u.as_ref().map(Spanned::span), "edge_u"),
+                        (d.edge_v.as_ref().map(Spanned::span), "edge_v"),
+                    ] {
+                        reject(self, span, key);
+                    }
+                    let normal = self.direction(d.normal.as_ref()?, "normal");
+                    let radius = self.number(&d.radius, 1.0, "radius", LENGTH);
+                    // Axes with u × v along the normal.
+                    let frame = crate::math::Frame::from_z(normal);
+                    (radius * frame.x, radius * frame.y, AreaOutline::Disk)
+                };
+                let normal = axis_u.cross(axis_v).try_normalize();
+                let Some(normal) = normal.filter(|n| n.is_finite()) else {
+                    self.error(
+                        desc.span(),
+                        format!("{label}: `edge_u` and `edge_v` span no area (zero or parallel edges)"),
+                    );
+                    return None;
+                };
+                LightShape::Area {
+                    center,
+                    axis_u,
+                    axis_v,
+                    normal,
+                    outline,
+                    two_sided,
+                    samples,
                 }
             }
         };
@@ -1611,6 +1676,27 @@ impl Check<'_, '_> {
                     radius,
                     samples,
                 },
+                LightShape::Area {
+                    center,
+                    axis_u,
+                    axis_v,
+                    outline,
+                    two_sided,
+                    samples,
+                    ..
+                } => {
+                    let along = |v: DVec3| transform.map_or(v, |t| t.to_world.transform_vector3(v));
+                    let (axis_u, axis_v) = (along(axis_u), along(axis_v));
+                    LightShape::Area {
+                        center: point(center),
+                        axis_u,
+                        axis_v,
+                        normal: axis_u.cross(axis_v).normalize_or_zero(),
+                        outline,
+                        two_sided,
+                        samples,
+                    }
+                }
             };
             light.radiance *= light_scale;
             if light_scale > 0.0 {

@@ -203,6 +203,10 @@ pub enum LightKind {
     Sphere,
     /// A point lighting a cone.
     Spot,
+    /// A uniform Lambertian rectangle.
+    Rectangle,
+    /// A uniform Lambertian disk.
+    Disk,
 }
 
 impl LightKind {
@@ -213,6 +217,8 @@ impl LightKind {
             LightKind::Directional => "directional",
             LightKind::Sphere => "sphere",
             LightKind::Spot => "spot",
+            LightKind::Rectangle => "rectangle",
+            LightKind::Disk => "disk",
         }
     }
 }
@@ -234,13 +240,21 @@ pub struct LightDesc {
     /// Kind of light.
     #[serde(rename = "type")]
     pub kind: Spanned<LightKind>,
-    /// Position (point) or centre (sphere).
+    /// Position (point) or centre (sphere, rectangle, disk).
     pub position: Option<AnimatedTriple>,
     /// Direction the light travels (directional).
     pub direction: Option<Triple>,
-    /// Radius (sphere).
+    /// Radius (sphere, disk).
     pub radius: Option<Number>,
-    /// Shadow feelers per shading point (sphere).
+    /// Rectangle: the full first edge.
+    pub edge_u: Option<Triple>,
+    /// Rectangle: the full second edge (it emits toward edge_u × edge_v).
+    pub edge_v: Option<Triple>,
+    /// Disk: the normal of its emitting side.
+    pub normal: Option<Triple>,
+    /// Rectangle, disk: whether both sides emit.
+    pub two_sided: Option<Spanned<bool>>,
+    /// Shadow feelers per shading point (sphere, rectangle, disk).
     pub samples: Option<Spanned<u32>>,
     /// Colour.
     pub color: Option<AnimatedTriple>,

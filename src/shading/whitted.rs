@@ -477,8 +477,9 @@ impl<'a> Whitted<'a> {
             }
             let mut visible = [DVec3::ZERO; SAMPLE_BATCH];
             for (k, sample) in batch.iter().enumerate() {
-                if point.n.dot(sample.direction) <= 0.0 {
-                    // The light is behind the surface: no feeler needed.
+                if sample.unlit(point.n) {
+                    // The light is behind the surface (or the point behind
+                    // the light): no feeler needed.
                     continue;
                 }
                 let visibility = match (&blocked, &nearest) {
@@ -548,7 +549,7 @@ impl<'a> Whitted<'a> {
         // As `direct`: no feeler where the light is behind the surface
         // (N·L ≤ 0; NaN is traced).
         let sample = batch.first();
-        let behind = sample.is_none_or(|s| point.n.dot(s.direction) <= 0.0);
+        let behind = sample.is_none_or(|s| s.unlit(point.n));
         if let Some(sample) = sample.filter(|_| !behind) {
             let origins = SpawnOrigins::new(point.hit.point, point.hit.normal);
             let visibility = self.visibility(&origins, sample, None, stats);
@@ -578,7 +579,7 @@ impl<'a> Whitted<'a> {
         for (k, sample) in batch.iter().enumerate() {
             let (ray, gap) = origins.spawn(sample.direction);
             // NaN included.
-            let behind = n.dot(sample.direction) <= 0.0;
+            let behind = sample.unlit(n);
             feelers.set(k, &ray, sample.distance - gap, !behind);
         }
         // A short last batch: its unused lanes off.

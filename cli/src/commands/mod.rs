@@ -135,6 +135,7 @@ fn check(path: &Path, load: &LoadArgs) -> ExitCode {
                  meshes: {} stored ({} triangles), {} triangles placed\n\
                  textures: {} ({:.1} MiB)\n\
                  estimated memory: {:.1} MiB\n\
+                 lights: {}\n\
                  load {:.2} s, build {:.2} s",
                 prism::text::Shown(path.display()),
                 scene.aggregate.primitives().len(),
@@ -155,6 +156,7 @@ fn check(path: &Path, load: &LoadArgs) -> ExitCode {
                 inv.textures,
                 inv.texture_bytes as f64 / (1 << 20) as f64,
                 c.memory_bytes as f64 / (1 << 20) as f64,
+                light_summary(&scene.lights),
                 total.saturating_sub(inv.build_time).as_secs_f64(),
                 inv.build_time.as_secs_f64(),
             );
@@ -162,4 +164,26 @@ fn check(path: &Path, load: &LoadArgs) -> ExitCode {
         }
         Err(e) => report_scene_error(&e),
     }
+}
+
+/// "2 sphere, 1 rectangle; 48 shadow feelers per shading point" (each kind
+/// in the order the scene first names it), or "none".
+fn light_summary(lights: &[prism::lights::Light]) -> String {
+    if lights.is_empty() {
+        return "none".into();
+    }
+    let mut kinds: Vec<(&str, usize)> = Vec::new();
+    for light in lights {
+        let kind = light.shape.kind();
+        match kinds.iter_mut().find(|(k, _)| *k == kind) {
+            Some((_, n)) => *n += 1,
+            None => kinds.push((kind, 1)),
+        }
+    }
+    let feelers: u64 = lights.iter().map(|l| u64::from(l.shape.feelers())).sum();
+    let kinds: Vec<String> = kinds.iter().map(|(k, n)| format!("{n} {k}")).collect();
+    format!(
+        "{}; up to {feelers} shadow feelers per shading point",
+        kinds.join(", ")
+    )
 }
