@@ -717,6 +717,8 @@ impl Check<'_, '_> {
                     .as_ref()
                     .map_or(DVec3::ZERO, |c| self.color(c, "emission")),
             ),
+            roughness: self.number(&d.roughness, 0.0, "roughness", UNIT_INTERVAL),
+            glossy_samples: self.count(&d.samples, 16, "samples", limits::MAX_LIGHT_SAMPLES),
         }
     }
 

@@ -189,6 +189,10 @@ pub struct MaterialDesc {
     pub highlight: Option<HighlightDesc>,
     /// Light the surface gives off itself.
     pub emission: Option<Triple>,
+    /// Glossy lobe: perceptual roughness in [0, 1].
+    pub roughness: Option<Number>,
+    /// Rays per glossy lobe.
+    pub samples: Option<Spanned<u32>>,
 }
 
 /// Light kinds.

@@ -55,6 +55,12 @@ pub struct Material {
     /// Light the surface gives off itself, added to the local model (as
     /// POV-Ray's `emission`); in a Whitted renderer it lights nothing else.
     pub emission: Texture,
+    /// Spread of the reflected and transmitted rays: glTF's and Blender's
+    /// perceptual roughness, 0 for a sharp mirror (see `glossy.rs`).
+    pub roughness: f64,
+    /// Rays per lobe where a path first meets a rough surface (one at
+    /// each rough surface after that, so the tree does not explode).
+    pub glossy_samples: u32,
 }
 
 impl Default for Material {
@@ -72,6 +78,8 @@ impl Default for Material {
             fresnel: Fresnel::Off,
             highlight: Highlight::Phong,
             emission: Texture::Solid(DVec3::ZERO),
+            roughness: 0.0,
+            glossy_samples: 16,
         }
     }
 }
@@ -239,6 +247,7 @@ mod tests {
             fresnel: Fresnel::Off,
             highlight,
             emission: Texture::Solid(DVec3::ZERO),
+            ..Material::default()
         }
     }
 

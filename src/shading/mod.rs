@@ -1,6 +1,7 @@
 //! The Whitted illumination model and what it needs: optics (reflect,
-//! refract, Fresnel), materials and textures.
+//! refract, Fresnel), glossy lobes, materials and textures.
 
+pub mod glossy;
 pub mod material;
 pub mod optics;
 pub mod texture;

@@ -3,11 +3,14 @@
 //! I = ka·Od·Ia + Σⱼ visⱼ·Ilⱼ·(kd·Od·max(0, N·Lⱼ) + ks·max(0, Rⱼ·V)ⁿ) + kr·I_reflected + kt·I_transmitted
 //!
 //! with shadow feelers for visⱼ, a reflected ray R = I − 2N(I·N), a
-//! refracted ray by Snell's law, both followed recursively.
+//! refracted ray by Snell's law, both followed recursively. On a rough
+//! material each of the two is a lobe of rays about microfacet normals
+//! (`glossy.rs`), averaged.
 
 use arrayvec::ArrayVec;
 use glam::DVec3;
 
+use super::glossy::{ggx_alpha, glossy_reflection, glossy_refraction, sample_ggx_normal};
 use super::optics::{fresnel_dielectric, reflect, refract, schlick};
 use super::{Fresnel, Material};
 use crate::accel::{Blocker, FeelerBatch, ShadowCandidates, simd};
@@ -16,6 +19,7 @@ use crate::lights::{Light, LightSample, LightSampler, SAMPLE_BATCH};
 use crate::math::Ray;
 use crate::math::ray::SpawnOrigins;
 use crate::math::rng::PixelRng;
+use crate::math::sampling::Strata;
 use crate::scene::Scene;
 use crate::stats::RayStats;
 
@@ -181,6 +185,9 @@ struct PathState {
     weight: DVec3,
     /// The media the ray travels through.
     media: Media,
+    /// Whether a rough surface earlier on the path split it into a lobe
+    /// of rays: then later rough surfaces send one ray each.
+    spread: bool,
 }
 
 impl PathState {
@@ -191,6 +198,7 @@ impl PathState {
             depth: 1,
             weight: DVec3::ONE,
             media: Media::default(),
+            spread: false,
         }
     }
 
@@ -200,6 +208,7 @@ impl PathState {
             depth: self.depth + 1,
             weight: self.weight * k,
             media,
+            spread: self.spread,
         }
     }
 }
@@ -223,6 +232,8 @@ struct Split {
     kt: DVec3,
     refracted: Option<DVec3>,
     media_beyond: Media,
+    /// η = ηi/ηt across the surface (1 where nothing is transmitted).
+    eta: f64,
 }
 
 impl<'a> Whitted<'a> {
@@ -340,6 +351,9 @@ impl<'a> Whitted<'a> {
         }
 
         let split = self.split(&point, hit.medium, entering, path.media, rec);
+        if material.roughness > 0.0 {
+            return color + self.glossy(ray, &point, &split, path, rng, stats, rec);
+        }
         if split.kr != DVec3::ZERO {
             if self.worth_tracing(path.weight * split.kr) {
                 let r = Ray::spawn(hit.point, hit.normal, reflect(ray.direction, point.n));
@@ -359,6 +373,76 @@ impl<'a> Whitted<'a> {
             }
         }
         color
+    }
+
+    /// The reflected and transmitted light of a rough surface: each a
+    /// lobe of rays about microfacet normals drawn from GGX (one stratum
+    /// of the square each), averaged with equal weights. The first rough
+    /// surface on a path sends the material's `glossy_samples` rays per
+    /// lobe, later ones one each. A facet that totally reflects the
+    /// transmitted share sends it on as reflected light.
+    #[allow(clippy::too_many_arguments)]
+    fn glossy<R: Recorder>(
+        &self,
+        ray: &Ray,
+        point: &ShadingPoint,
+        split: &Split,
+        path: PathState,
+        rng: &mut PixelRng,
+        stats: &mut RayStats,
+        rec: &mut R,
+    ) -> DVec3 {
+        let hit = &point.hit;
+        let reflects = split.kr != DVec3::ZERO;
+        let transmits = split.refracted.is_some() && split.kt != DVec3::ZERO;
+        if reflects && !self.worth_tracing(path.weight * split.kr) {
+            rec.stop(Stop::ReflectionWeight);
+        }
+        if transmits && !self.worth_tracing(path.weight * split.kt) {
+            rec.stop(Stop::RefractionWeight);
+        }
+        let reflects = reflects && self.worth_tracing(path.weight * split.kr);
+        let transmits = transmits && self.worth_tracing(path.weight * split.kt);
+        if !reflects && !transmits {
+            return DVec3::ZERO;
+        }
+        let count = if path.spread {
+            1
+        } else {
+            point.material.glossy_samples as usize
+        };
+        let strata = Strata::new(count);
+        let alpha = ggx_alpha(point.material.roughness);
+        let mut path = path;
+        path.spread = true;
+        let mut sum = DVec3::ZERO;
+        if reflects {
+            for i in 0..count {
+                let m = sample_ggx_normal(point.n, alpha, strata.point(i, rng));
+                let direction = glossy_reflection(ray.direction, point.n, m);
+                let r = Ray::spawn(hit.point, hit.normal, direction);
+                let child = path.child(RayKind::Reflection, split.kr, path.media);
+                sum += split.kr * self.trace(&r, child, rng, stats, rec);
+            }
+        }
+        if transmits {
+            for i in 0..count {
+                let m = sample_ggx_normal(point.n, alpha, strata.point(i, rng));
+                let (direction, kind, media) =
+                    match glossy_refraction(ray.direction, point.n, m, split.eta) {
+                        Some(t) => (t, RayKind::Refraction, split.media_beyond),
+                        None => (
+                            glossy_reflection(ray.direction, point.n, m),
+                            RayKind::Reflection,
+                            path.media,
+                        ),
+                    };
+                let r = Ray::spawn(hit.point, hit.normal, direction);
+                let child = path.child(kind, split.kt, media);
+                sum += split.kt * self.trace(&r, child, rng, stats, rec);
+            }
+        }
+        sum / count as f64
     }
 
     /// Whitted's adaptive depth control: a ray is traced while its weight in
@@ -390,6 +474,7 @@ impl<'a> Whitted<'a> {
                 kt,
                 refracted: None,
                 media_beyond: media,
+                eta: 1.0,
             };
         }
         // Indices on both sides: η = ηi/ηt.
@@ -418,6 +503,7 @@ impl<'a> Whitted<'a> {
             kt,
             refracted,
             media_beyond,
+            eta: eta_i / eta_t,
         }
     }
 

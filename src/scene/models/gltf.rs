@@ -1112,6 +1112,10 @@ impl<'a> Reader<'a> {
             },
             highlight: Highlight::Blinn,
             emission,
+            // The reflection stays sharp: a glossy lobe from glTF's
+            // roughness is the Blender issue's to weigh (its cost per hit).
+            roughness: 0.0,
+            glossy_samples: 16,
         })
     }
 

@@ -403,6 +403,8 @@ fn material(
         },
         highlight: Highlight::Phong,
         emission: Texture::Solid(DVec3::ZERO),
+        roughness: 0.0,
+        glossy_samples: 16,
     })
 }
 
