@@ -28,7 +28,7 @@ for path in avx2 sse2 scalar; do
         fail "PRISM_SIMD=$path ran '$used'"
     fi
 done
-for scene in whitted soft-shadows star nested-glass cornell models gltf rolling solids csg; do
+for scene in whitted soft-shadows star nested-glass cornell models gltf rolling solids csg distributed; do
     for ext in exr png; do
         args=(render "scenes/$scene.toml" --width 160 --height 120 --spp 2 -q)
         [ "$scene" = rolling ] && args+=(--frame 30)
@@ -41,4 +41,4 @@ for scene in whitted soft-shadows star nested-glass cornell models gltf rolling 
         done
     done
 done
-echo "ok: the SIMD and portable builds, and the ${paths[*]} box tests, give the same bytes on 10 scenes (EXR and PNG)"
+echo "ok: the SIMD and portable builds, and the ${paths[*]} box tests, give the same bytes on 11 scenes (EXR and PNG)"
