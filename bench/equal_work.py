@@ -7,11 +7,13 @@ again with shadows through the glass ball (Prism's transparent_shadows),
 the soft-shadow study: a point light and two sphere lights, the Whitted
 scene under a 16-feeler rectangle light (POV-Ray: a 4×4 area light), the solids:
 bench/solids.toml and .pov, boxes, cylinders, cones, discs and tori under a
-16-sample sphere light, shadows through glass on both sides, and the CSG
+16-sample sphere light, shadows through glass on both sides, the CSG
 scene: bench/csg.toml and .pov, dice, lenses, drilled balls, a glass merge,
-a glass block less a bubble, half-spaces, under the same light), without
-antialiasing, and prints each side's rays as it counts them (camera,
-reflected, refracted, shadow feelers), CPU and wall
+a glass block less a bubble, half-spaces, under the same light, and depth of
+field: bench/focal.toml and .pov, a thin lens against POV-Ray's focal_blur at
+16 samples per pixel on both sides), without antialiasing, and prints each
+side's rays as it counts them (camera, reflected, refracted, shadow
+feelers), CPU and wall
 time from GNU time, on one thread and on all. Ray counts differ a little
 (POV-Ray also traces feelers from surfaces facing away from the light and
 counts rays its light buffer saves), so besides the plain time ratio the
@@ -60,7 +62,16 @@ CASES = [
     # merge, a glass block less a bubble, planes as half-spaces, an inverse
     # sphere); transparent_shadows as in the solids.
     ("csg", "bench/csg.toml", "bench/csg.pov", 640, 480, []),
+    # Depth of field: Prism's thin lens against POV-Ray's focal_blur, five
+    # balls receding over the floor, a point light (bench/focal.pov says how
+    # the two apertures map).
+    ("focal", "bench/focal.toml", "bench/focal.pov", 640, 480, []),
 ]
+
+# Samples per pixel where a case needs more than one: a lens is sampled by
+# the camera rays, so Prism's spp equals POV-Ray's blur_samples (which it
+# traces whatever its antialiasing, with variance 0 all of them).
+SAMPLES = {"focal": 16}
 
 
 def timed(cmd, cwd):
@@ -114,8 +125,9 @@ def main():
                 path = os.path.join(tmp, f"{name}.{ext}")
                 open(path, "w").write(text)
                 texts.append(path)
+            spp = SAMPLES.get(name, 1)
             for threads in sorted({1, threads_all}):
-                p_cmd = [prism, "render", texts[0], "-o", os.path.join(tmp, "p.png"), "--spp", "1",
+                p_cmd = [prism, "render", texts[0], "-o", os.path.join(tmp, "p.png"), "--spp", str(spp),
                          "--width", str(w), "--height", str(h), "--threads", str(threads)]
                 v_cmd = ["povray", "+I" + texts[1], "+O" + os.path.join(tmp, "v.png"), f"+W{w}", f"+H{h}",
                          "-A", "-D", "-GR", "-GD", f"+WT{threads}"]
@@ -128,7 +140,7 @@ def main():
                     text, cpu, wall = timed(v_cmd, tmp)
                     rays["povray"] = povray_rays(text)
                     runs["povray"].append((cpu, wall))
-                print(f"\n{name}, {w}x{h}, 1 spp, {threads} thread(s)")
+                print(f"\n{name}, {w}x{h}, {spp} spp, {threads} thread(s)")
                 print(f"  {'':7} {'camera':>9} {'reflected':>10} {'refracted':>10} {'feelers':>11} "
                       f"{'CPU s':>12} {'wall s':>12}")
                 for side in ("prism", "povray"):
