@@ -122,6 +122,10 @@ pub struct Explanation {
     pub radiance: [f64; 3],
     /// The pixel's value (the mean of its samples).
     pub pixel_radiance: [f64; 3],
+    /// With a thin lens, where the sample's camera ray leaves the lens: in
+    /// world units along the camera's right and up from the lens centre
+    /// (within the aperture); `None` for a pinhole.
+    pub lens_point: Option<[f64; 2]>,
     /// The camera ray and its subtree.
     pub tree: RayNode,
 }
@@ -162,7 +166,7 @@ pub fn explain(
         root: None,
     };
     let mut stats = RayStats::default();
-    let (pixel, radiance) = render_pixel_recorded(
+    let (pixel, radiance, lens) = render_pixel_recorded(
         scene,
         &tracer,
         settings,
@@ -178,6 +182,7 @@ pub fn explain(
         samples: samples as u32,
         radiance: radiance.to_array(),
         pixel_radiance: pixel.to_array(),
+        lens_point: lens.map(|p| p.to_array()),
         tree: recorder.root.unwrap_or_default(),
     })
 }

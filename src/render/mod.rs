@@ -2,6 +2,7 @@
 //! pixel draws from its own random stream, so the result does not depend on
 //! the thread count or the tile order.
 
+mod adaptive;
 pub mod aov;
 mod checkpoint;
 pub mod explain;
@@ -24,8 +25,9 @@ use thiserror::Error;
 
 use crate::accel::PACKET;
 use crate::math::Ray;
+use crate::math::permutation::permutation_element;
 use crate::math::rng::PixelRng;
-use crate::math::sampling::Strata;
+use crate::math::sampling::{Strata, concentric_disk};
 use crate::scene::Scene;
 use crate::shading::whitted::{Recorder, Whitted, WhittedSettings};
 
@@ -114,8 +116,15 @@ pub fn render_region(
         settings,
         region,
         observer,
-        |tracer, y, xs, stats, out| {
-            render_row(scene, tracer, settings, y, xs, stats, out);
+        |tracer, y, xs, stats, out| match settings.adaptive {
+            Some(a) => {
+                // Tiles start every TILE rows from the region's top.
+                let tile_top = (y - region.y0) % TILE == 0;
+                adaptive::render_row_adaptive(
+                    scene, tracer, settings, a, y, xs, tile_top, stats, out,
+                );
+            }
+            None => render_row(scene, tracer, settings, y, xs, stats, out),
         },
     )
 }
@@ -230,12 +239,14 @@ pub fn render_row(
         let n = (xs.end - x0).min(PACKET as u32) as usize;
         let mut rngs: [PixelRng; PACKET] =
             std::array::from_fn(|k| PixelRng::new(seed, x0 + k.min(n - 1) as u32, y));
+        let lens_keys: [u32; PACKET] = std::array::from_fn(|k| lens_key(scene, &mut rngs[k]));
         let mut sums = [DVec3::ZERO; PACKET];
         let mut rays = [Ray::new(DVec3::ZERO, DVec3::Z); PACKET];
         let mut hits = [None; PACKET];
         for s in 0..spp {
             for (k, (ray, rng)) in rays.iter_mut().zip(&mut rngs).enumerate().take(n) {
-                *ray = camera_ray(scene, settings, &strata, s, x0 + k as u32, y, rng);
+                let x = x0 + k as u32;
+                *ray = camera_ray(scene, settings, &strata, s, x, y, lens_keys[k], rng).0;
             }
             scene
                 .aggregate
@@ -250,8 +261,9 @@ pub fn render_row(
 }
 
 /// [`render_pixel`], with sample `recorded` (every sample: `None`) traced
-/// through `recorder`; returns the pixel and the last recorded sample's
-/// radiance.
+/// through `recorder`; returns the pixel, the last recorded sample's
+/// radiance and its point on the lens (see [`camera_ray`]; `None` for a
+/// pinhole).
 #[allow(clippy::too_many_arguments)]
 pub fn render_pixel_recorded<R: Recorder>(
     scene: &Scene,
@@ -262,29 +274,51 @@ pub fn render_pixel_recorded<R: Recorder>(
     stats: &mut RayStats,
     recorded: Option<usize>,
     recorder: &mut R,
-) -> (DVec3, DVec3) {
+) -> (DVec3, DVec3, Option<glam::DVec2>) {
     let mut rng = PixelRng::new(frame_seed(settings.seed, settings.frame), x, y);
     let strata = Strata::new(settings.spp as usize);
     let spp = strata.len();
+    let lens_key = lens_key(scene, &mut rng);
     let mut sum = DVec3::ZERO;
     let mut sample_radiance = DVec3::ZERO;
+    let mut sample_lens = None;
     for s in 0..spp {
-        let ray = camera_ray(scene, settings, &strata, s, x, y, &mut rng);
+        let (ray, lens) = camera_ray(scene, settings, &strata, s, x, y, lens_key, &mut rng);
         let radiance = if recorded.is_none_or(|k| k == s) {
             let r = tracer.radiance_recorded(&ray, &mut rng, stats, recorder);
-            sample_radiance = r;
+            (sample_radiance, sample_lens) = (r, lens);
             r
         } else {
             tracer.radiance(&ray, &mut rng, stats)
         };
         sum += radiance;
     }
-    (sum / spp as f64, sample_radiance)
+    (sum / spp as f64, sample_radiance, sample_lens)
+}
+
+/// The key of the pixel's pairing of film strata with lens strata, drawn
+/// first from its stream when the camera has a lens (a pinhole draws
+/// nothing, so its pictures keep their bits). Sample s looks through lens
+/// stratum `permutation_element(s, spp, key)`: pairing stratum s with lens
+/// stratum s in every pixel would sample only the diagonal blocks of
+/// film × lens, a bias; a shuffle per pixel pairs them at random, as
+/// pbrt's stratified sampler shuffles each dimension.
+fn lens_key(scene: &Scene, rng: &mut PixelRng) -> u32 {
+    if scene.camera.lens.is_some() {
+        (rng.uniform() * 4_294_967_296.0) as u32
+    } else {
+        0
+    }
 }
 
 /// The camera ray of sample `s` of pixel (x, y): through the pixel's
 /// centre at one sample, else through a point of stratum `s` drawn from
-/// the pixel's stream `rng`.
+/// the pixel's stream `rng`; with a thin lens, through a point of the lens
+/// stratum [`lens_key`] pairs with it, drawn next from the same stream and
+/// carried onto the lens by the concentric map (which keeps strata
+/// compact). Returns the ray and, with a lens, its point on the lens in
+/// world units along the camera's right and up from the lens centre.
+#[allow(clippy::too_many_arguments)]
 fn camera_ray(
     scene: &Scene,
     settings: &RenderSettings,
@@ -292,19 +326,24 @@ fn camera_ray(
     s: usize,
     x: u32,
     y: u32,
+    lens_key: u32,
     rng: &mut PixelRng,
-) -> Ray {
+) -> (Ray, Option<glam::DVec2>) {
     let offset = if strata.len() == 1 {
         glam::DVec2::splat(0.5)
     } else {
         strata.point(s, rng)
     };
-    scene.camera.ray(
-        f64::from(x) + offset.x,
-        f64::from(y) + offset.y,
-        settings.width,
-        settings.height,
-    )
+    let (x, y) = (f64::from(x) + offset.x, f64::from(y) + offset.y);
+    let camera = &scene.camera;
+    let Some(lens) = camera.lens else {
+        return (camera.ray(x, y, settings.width, settings.height), None);
+    };
+    let n = strata.len() as u32;
+    let stratum = permutation_element(s as u32, n, lens_key) as usize;
+    let disk = concentric_disk(strata.point(stratum, rng));
+    let ray = camera.ray_through_lens(x, y, settings.width, settings.height, disk);
+    (ray, Some(lens.radius * disk))
 }
 
 /// The seed of frame `frame`'s pixel streams: the scene's seed for frame

@@ -74,12 +74,12 @@ struct ChosenCamera {
     explicit: bool,
 }
 use crate::accel::{Aggregate, Primitive, Shape};
-use crate::camera::{Camera, FovAxis, Projection};
+use crate::camera::{Camera, FovAxis, Projection, ThinLens};
 use crate::geometry::{
     Cone, Csg, CsgChild, CsgOp, Cuboid, Disc, Ellipsoid, Mesh, MeshInstance, Plane, Polygon,
     Sphere, Torus,
 };
-use crate::lights::{Light, LightShape};
+use crate::lights::{AreaOutline, Light, LightShape};
 use crate::limits;
 use crate::math::Transform;
 use crate::settings::RenderSettings;
@@ -572,6 +572,14 @@ impl Check<'_, '_> {
             threads: None,
             exposure: self.number(&r.exposure, 0.0, "exposure", EXPOSURE),
             aspect: None,
+            adaptive: r.adaptive.as_ref().map(|a| {
+                let a = a.get_ref();
+                crate::settings::Adaptive {
+                    threshold: self.number(&a.threshold, 0.3, "adaptive.threshold", VALUE),
+                    depth: self.count(&a.depth, 3, "adaptive.depth", limits::MAX_ADAPTIVE_DEPTH),
+                    jitter: a.jitter.unwrap_or(false),
+                }
+            }),
         }
     }
 
@@ -622,14 +630,60 @@ impl Check<'_, '_> {
                 Projection::Orthographic { view_height }
             }
         };
-        let camera = Camera::look_at(position, look_at, up, projection);
+        let mut camera = Camera::look_at(position, look_at, up, projection);
         if camera.is_none() && self.diags.is_empty() {
             self.error(
                 d.look_at.span(),
                 "the camera needs `look_at` away from `position` and a view direction not parallel to `up`".into(),
             );
         }
+        if let Some(camera) = camera.as_mut() {
+            camera.lens = self.lens(d, camera, look_at);
+        }
         camera
+    }
+
+    /// The camera's thin lens: `aperture` (its radius; 0, the default, is
+    /// a pinhole) focused at `focus_distance`, at the depth of `focus_on`
+    /// along the view, or, with neither, at `look_at`: the point the
+    /// camera is aimed at is the one a user means to see sharp (POV-Ray's
+    /// focal_point defaults to the origin, where its look_at usually is).
+    fn lens(&mut self, d: &CameraDesc, camera: &Camera, look_at: DVec3) -> Option<ThinLens> {
+        let aperture = self.at_frame(&d.aperture);
+        let radius = self.number(&aperture, 0.0, "aperture", LENGTH_OR_ZERO);
+        let distance = self.at_frame(&d.focus_distance);
+        let on = self.at_frame(&d.focus_on);
+        let depth = |p: DVec3| (p - camera.position).dot(camera.forward);
+        let focus_distance = match (&distance, &on) {
+            (Some(_), Some(on)) => {
+                self.error(
+                    on.span(),
+                    "give `focus_distance` or `focus_on`, not both".into(),
+                );
+                return None;
+            }
+            (Some(_), None) => self.number(&distance, 1.0, "focus_distance", LENGTH),
+            (None, Some(on)) => {
+                let z = depth(self.point(on, "focus_on"));
+                if z < limits::MIN_LENGTH {
+                    self.error(
+                        on.span(),
+                        format!(
+                            "`focus_on` must lie in front of the camera (its depth along the view \
+                             direction must be positive), got depth {}",
+                            readable(z)
+                        ),
+                    );
+                    return None;
+                }
+                z
+            }
+            (None, None) => depth(look_at),
+        };
+        (radius > 0.0).then_some(ThinLens {
+            radius,
+            focus_distance,
+        })
     }
 
     fn material(&mut self, name: &str, desc: &Spanned<MaterialDesc>) -> Material {

@@ -44,6 +44,18 @@ pub struct SceneFile {
     pub object_tables: Vec<Range<usize>>,
 }
 
+/// `adaptive = { threshold = …, depth = …, jitter = … }` in `[render]`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AdaptiveDesc {
+    /// Largest corner difference left without a cut.
+    pub threshold: Option<Number>,
+    /// Most levels of cuts.
+    pub depth: Option<Spanned<u32>>,
+    /// Jittered sample points.
+    pub jitter: Option<bool>,
+}
+
 /// `[render]`: image and tracing settings.
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -68,6 +80,8 @@ pub struct RenderDesc {
     pub transparent_shadows: Option<bool>,
     /// Exposure in stops for 8-bit images.
     pub exposure: Option<Number>,
+    /// Adaptive anti-aliasing.
+    pub adaptive: Option<Spanned<AdaptiveDesc>>,
 }
 
 /// Camera projections.
@@ -110,6 +124,12 @@ pub struct CameraDesc {
     pub fov_axis: Option<Spanned<FovAxisDesc>>,
     /// Height of the view in world units (orthographic).
     pub view_height: Option<Number>,
+    /// Thin lens radius in world units (0: a pinhole).
+    pub aperture: Option<AnimatedNumber>,
+    /// Distance along the view direction to the plane in focus.
+    pub focus_distance: Option<AnimatedNumber>,
+    /// A point whose depth along the view direction is the focus distance.
+    pub focus_on: Option<AnimatedTriple>,
 }
 
 /// `fresnel = ...`.

@@ -127,6 +127,11 @@ fn describe(e: &Explanation) -> String {
             String::new()
         }
     );
+    if let Some([right, up]) = e.lens_point {
+        out.push_str(&format!(
+            "through the lens at ({right:.6}, {up:.6}) (right, up from its centre)\n"
+        ));
+    }
     node(&e.tree, 0, &mut out);
     out
 }

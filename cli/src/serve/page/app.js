@@ -326,6 +326,7 @@ async function explain(x, y) {
   state.explanation = e;
   $("inspector").innerHTML =
     `<p>Pixel (${x}, ${y}), sample ${e.sample} of ${e.samples}: radiance <b id="inspect-radiance">${fmt(e.radiance)}</b></p>` +
+    (e.lens_point ? `<p>Through the lens at ${fmt(e.lens_point)} (right, up from its centre)</p>` : "") +
     nodeHtml(e.tree);
   // The sample's rays over the picture.
   rctx.clearRect(0, 0, rays.width, rays.height);
