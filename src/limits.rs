@@ -16,6 +16,9 @@ pub const MAX_FRAMES: u32 = 1_000_000;
 /// Most worker threads a render may ask for (`--threads`, Python's
 /// `threads=`): more than any machine has cores, few enough to start at once.
 pub const MAX_THREADS: u32 = 1024;
+/// Most cuts of adaptive anti-aliasing: at most (2⁹ + 1)² samples to a
+/// pixel, and lattice coordinates (side × 2⁹) fit in 32 bits.
+pub const MAX_ADAPTIVE_DEPTH: u32 = 8;
 /// Most shadow feelers per sphere light and shading point.
 pub const MAX_LIGHT_SAMPLES: u32 = 65_536;
 
@@ -56,7 +59,7 @@ pub const MAX_CSG_DEPTH: usize = 64;
 pub fn describe() -> String {
     format!(
         "Limits: image sides 1..={MAX_IMAGE_SIDE} and at most {MAX_PIXELS} pixels; spp 1..={MAX_SPP}; \
-         max_depth 1..={MAX_DEPTH}; threads 1..={MAX_THREADS}; animation frames 1..={MAX_FRAMES}; sphere-light samples 1..={MAX_LIGHT_SAMPLES}; coordinates within \
+         max_depth 1..={MAX_DEPTH}; adaptive depth 0..={MAX_ADAPTIVE_DEPTH}; threads 1..={MAX_THREADS}; animation frames 1..={MAX_FRAMES}; sphere-light samples 1..={MAX_LIGHT_SAMPLES}; coordinates within \
          ±{MAX_COORDINATE:e} and lengths, radii and scale factors in [{MIN_LENGTH:e}, {MAX_COORDINATE:e}] \
          (after transforms); colours, intensities and coefficients at most {MAX_VALUE:e}; \
          {MAX_MODEL_PLACEMENTS} placements per model file; CSG nested {MAX_CSG_DEPTH} deep; {} MiB of scene text per [[objects]] \

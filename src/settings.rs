@@ -4,6 +4,22 @@
 
 use crate::limits;
 
+/// Whitted's adaptive anti-aliasing (1980; POV-Ray's `+AM2`): samples at
+/// the pixel corners (shared with the neighbours) and centre, and a square
+/// cut in four where they differ by more than `threshold`, at most `depth`
+/// times (see `render/adaptive.rs`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Adaptive {
+    /// Largest difference of the corners of a square (in any colour
+    /// channel of linear radiance) left without a cut.
+    pub threshold: f64,
+    /// Most cuts (0..=`MAX_ADAPTIVE_DEPTH`; 0: five samples a pixel).
+    pub depth: u32,
+    /// Whether each sample point moves at random within half the spacing
+    /// of its level (the same point for every pixel that shares it).
+    pub jitter: bool,
+}
+
 /// How to render: resolution, sampling and recursion limits.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderSettings {
@@ -31,6 +47,8 @@ pub struct RenderSettings {
     /// `aspectRatio`) when the scene file does not set both sides: a
     /// command-line override of one side then derives the other.
     pub aspect: Option<f64>,
+    /// Adaptive anti-aliasing instead of `spp` stratified samples.
+    pub adaptive: Option<Adaptive>,
 }
 
 /// The image size for a camera made for images `aspect` wide per unit of
@@ -115,6 +133,13 @@ impl RenderSettings {
                 "max_depth {} must be between 1 and {MAX_DEPTH}",
                 self.max_depth
             ))
+        } else if let Some(a) = self.adaptive
+            && (a.depth > MAX_ADAPTIVE_DEPTH || !(a.threshold >= 0.0))
+        {
+            Err(format!(
+                "adaptive anti-aliasing: depth {} must be between 0 and {MAX_ADAPTIVE_DEPTH} and threshold {} a number ≥ 0",
+                a.depth, a.threshold
+            ))
         } else {
             Ok(())
         }
@@ -135,7 +160,20 @@ impl RenderSettings {
         if self.exposure != 0.0 {
             key.push_str(&format!(" exposure={}", self.exposure));
         }
+        if let Some(a) = self.adaptive {
+            let jitter = if a.jitter { "/jitter" } else { "" };
+            key.push_str(&format!(" adaptive={}/{}{jitter}", a.threshold, a.depth));
+        }
         key
+    }
+
+    /// How pixels are sampled, for messages: `4 spp`, or `adaptive
+    /// 0.3/3` (threshold/depth).
+    pub fn sampling(&self) -> String {
+        match self.adaptive {
+            None => format!("{} spp", self.spp),
+            Some(a) => format!("adaptive {}/{}", a.threshold, a.depth),
+        }
     }
 
     /// The exposure recorded in a [`pixel_key`](Self::pixel_key), 0 when
@@ -162,6 +200,7 @@ impl Default for RenderSettings {
             threads: None,
             exposure: 0.0,
             aspect: None,
+            adaptive: None,
         }
     }
 }

@@ -686,3 +686,44 @@ fn an_exposed_png_merges_to_the_same_bytes() {
         "plain.exr: belongs to another render: its exposure is `0`",
     );
 }
+
+#[test]
+fn a_lens_adaptive_sampling_and_an_area_light_merge_to_the_whole_image_byte_for_byte() {
+    // scenes/distributed.toml has a thin lens, a rectangle light and glossy
+    // materials; adaptive anti-aliasing shares its corner samples across
+    // tiles and regions, which must not change a bit.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let from = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/distributed.toml");
+    let text = std::fs::read_to_string(from).unwrap().replace(
+        "[render]\n",
+        "[render]\nadaptive = { threshold = 0.05, depth = 2, jitter = true }\n",
+    );
+    std::fs::write(d.join("s.toml"), text).unwrap();
+    let size = ["--width", "72", "--height", "41"];
+    let run = |extra: &[&str]| ok(d, &[&["render", "s.toml", "-q"], &size[..], extra].concat());
+    run(&["-o", "whole.exr"]);
+    for i in 0..3 {
+        run(&["--tile", &format!("{i}/3"), "-o", &format!("t{i}.exr")]);
+    }
+    ok(d, &["merge", "t2.exr", "t0.exr", "t1.exr", "-o", "m.exr"]);
+    assert!(bytes(d, "whole.exr") == bytes(d, "m.exr"), "tiles differ");
+    for (name, crop) in [
+        ("a", "0,29,0,17"),
+        ("b", "29,72,0,17"),
+        ("c", "0,29,17,41"),
+        ("d", "29,72,17,41"),
+    ] {
+        run(&["--crop", crop, "-o", &format!("{name}.exr"), "--threads", "1"]);
+    }
+    ok(d, &["merge", "c.exr", "a.exr", "d.exr", "b.exr", "-o", "g.exr"]);
+    assert!(bytes(d, "whole.exr") == bytes(d, "g.exr"), "crops differ");
+    // A part rendered without adaptive sampling does not merge with them.
+    let plain = std::fs::read_to_string(d.join("s.toml"))
+        .unwrap()
+        .replace("adaptive = { threshold = 0.05, depth = 2, jitter = true }\n", "");
+    std::fs::write(d.join("p.toml"), plain).unwrap();
+    ok(d, &[&["render", "p.toml", "-q"], &size[..], &["--crop", "0,29,0,17", "-o", "pa.exr"]].concat());
+    let o = prism(d, &["merge", "pa.exr", "b.exr", "c.exr", "d.exr", "-o", "x.exr"]);
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+}

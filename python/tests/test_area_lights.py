@@ -1,6 +1,7 @@
-"""Area lights (issue 28) through Scene.from_dict: a rectangle and a disk
-light, one- and two-sided, give the picture their TOML text gives, pixel
-for pixel; a bad key raises SceneError naming it."""
+"""Distributed ray tracing (issue 28) through Scene.from_dict: a rectangle
+and a disk light, one- and two-sided, a rough (glossy) material, a thin
+lens and adaptive anti-aliasing give the picture their TOML text gives,
+pixel for pixel; a bad key raises SceneError naming it."""
 
 import numpy as np
 import pytest
@@ -29,6 +30,8 @@ LIGHTS = {
 
 
 def toml_value(v):
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{k} = {toml_value(x)}" for k, x in v.items()) + " }"
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, list):
@@ -74,3 +77,18 @@ def test_a_bad_area_light_key_names_it():
     bad = dict(LIGHTS["disk"], edge_u=[1, 0, 0])
     with pytest.raises(prism.SceneError, match="edge_u"):
         prism.Scene.from_dict(dict(FLOOR, lights={"area": bad}))
+
+
+def test_glossy_lens_and_adaptive_from_a_dict_are_their_toml():
+    d = dict(FLOOR, lights={"area": LIGHTS["rectangle"]})
+    d["render"] = dict(d["render"], adaptive={"threshold": 0.1, "depth": 2, "jitter": True})
+    d["camera"] = dict(d["camera"], aperture=0.1, focus_on=[0, 0.6, 0])
+    d["materials"] = dict(d["materials"], mirror={"kd": 0.1, "kr": 0.8, "roughness": 0.3, "samples": 4})
+    d["objects"] = d["objects"] + [{"type": "sphere", "material": "mirror",
+                                    "center": [1.2, 0.5, 0.4], "radius": 0.5}]
+    a = prism.Scene.from_dict(d).render(progress=False)
+    b = prism.loads(toml_of(d)).render(progress=False)
+    assert a.tobytes() == b.tobytes(), toml_of(d)
+    # The same picture on one thread as on all.
+    c = prism.Scene.from_dict(d).render(progress=False, threads=1)
+    assert a.tobytes() == c.tobytes()

@@ -443,10 +443,10 @@ impl Job<'_> {
         };
         if !args.quiet && !terminal {
             say_err!(
-                "prism: rendering {}x{} {what}, {} spp, {} threads",
+                "prism: rendering {}x{} {what}, {}, {} threads",
                 settings.width,
                 settings.height,
-                settings.spp,
+                settings.sampling(),
                 threads
             );
         }
@@ -555,10 +555,10 @@ impl Job<'_> {
         if !args.quiet {
             let s = output.stats;
             say_err!(
-                "prism: {}x{} {} spp, {} threads, {} boxes; load {:.2} s, build {:.2} s, render {:.2} s, write {:.2} s; rays: {} camera, {} reflection, {} refraction, {} shadow; {:.2} Mrays/s -> {}",
+                "prism: {}x{} {}, {} threads, {} boxes; load {:.2} s, build {:.2} s, render {:.2} s, write {:.2} s; rays: {} camera, {} reflection, {} refraction, {} shadow; {:.2} Mrays/s -> {}",
                 settings.width,
                 settings.height,
-                settings.spp,
+                settings.sampling(),
                 threads,
                 prism::accel::simd_path().name(),
                 self.load_time

@@ -1,0 +1,159 @@
+//! Whitted's adaptive anti-aliasing (`[render] adaptive`): corner and
+//! centre samples shared by neighbouring pixels and tiles, the same bits in
+//! any region split and on any thread count, a flat picture costing exactly
+//! its lattice, fewer rays than uniform sampling for the same error on an
+//! edge-heavy scene, and its keys checked.
+
+use glam::DVec3;
+use prism::render::{Film, Region, render_region};
+use prism::settings::Adaptive;
+use prism::{RenderSettings, Scene, render};
+
+fn scene(toml: &str) -> Scene {
+    Scene::from_toml(toml, "test").unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn edges() -> Scene {
+    let text = include_str!("../bench/edges.toml");
+    scene(text)
+}
+
+fn adaptive(threshold: f64, depth: u32, jitter: bool) -> Option<Adaptive> {
+    Some(Adaptive {
+        threshold,
+        depth,
+        jitter,
+    })
+}
+
+fn rmse(a: &Film, b: &Film) -> f64 {
+    let sum: f64 = a
+        .pixels()
+        .iter()
+        .zip(b.pixels())
+        .map(|(x, y)| (*x - *y).length_squared())
+        .sum();
+    (sum / (3 * a.pixels().len()) as f64).sqrt()
+}
+
+#[test]
+fn any_region_split_and_thread_count_gives_the_whole_renders_bits() {
+    let s = edges();
+    for jitter in [false, true] {
+        let settings = RenderSettings {
+            width: 80,
+            height: 50,
+            adaptive: adaptive(0.05, 2, jitter),
+            threads: Some(2),
+            ..s.settings
+        };
+        let whole = render(&s, &settings, &()).unwrap().film;
+        let one = render(&s, &RenderSettings { threads: Some(1), ..settings }, &()).unwrap();
+        assert_eq!(whole.pixels(), one.film.pixels());
+        // Uneven cuts, so that tiles of the parts lie elsewhere than the
+        // whole render's.
+        for (x0, x1, y0, y1) in [(0, 37, 0, 23), (37, 80, 0, 23), (0, 37, 23, 50), (37, 80, 23, 50)] {
+            let region = Region { x0, x1, y0, y1 };
+            let part = render_region(&s, &settings, region, &()).unwrap().film;
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    assert_eq!(
+                        part.pixels()[((y - y0) * (x1 - x0) + (x - x0)) as usize],
+                        whole.pixels()[(y * 80 + x) as usize],
+                        "jitter {jitter}: pixel {x},{y}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn a_flat_picture_costs_its_corners_and_centres_once() {
+    // Nothing but the background: no square is cut, every corner is traced
+    // once per tile it belongs to (tiles of 16 × 16 keep their own), and
+    // every pixel's centre once.
+    let s = scene(
+        "[render]\nbackground = [0.2, 0.3, 0.4]\n[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\n",
+    );
+    let (w, h) = (40u64, 20u64);
+    let settings = RenderSettings {
+        width: w as u32,
+        height: h as u32,
+        adaptive: adaptive(0.0, 3, false),
+        ..s.settings
+    };
+    let out = render(&s, &settings, &()).unwrap();
+    assert!(out.film.pixels().iter().all(|p| *p == DVec3::new(0.2, 0.3, 0.4)));
+    let mut expected = 0;
+    for tx in (0..w).step_by(16) {
+        for ty in (0..h).step_by(16) {
+            let (tw, th) = ((w - tx).min(16), (h - ty).min(16));
+            expected += (tw + 1) * (th + 1) + tw * th;
+        }
+    }
+    assert_eq!(out.stats.camera, expected);
+}
+
+#[test]
+fn on_edges_it_beats_uniform_sampling_with_fewer_rays() {
+    let s = edges();
+    let base = RenderSettings {
+        width: 160,
+        height: 100,
+        ..s.settings
+    };
+    let reference = render(&s, &RenderSettings { spp: 256, seed: 99, ..base }, &())
+        .unwrap()
+        .film;
+    let uniform = render(&s, &RenderSettings { spp: 8, ..base }, &()).unwrap();
+    let adapted = render(
+        &s,
+        &RenderSettings {
+            adaptive: adaptive(0.2, 1, false),
+            ..base
+        },
+        &(),
+    )
+    .unwrap();
+    let (eu, ea) = (rmse(&uniform.film, &reference), rmse(&adapted.film, &reference));
+    let rays = |o: &prism::RenderOutput| o.stats.camera + o.stats.shadow + o.stats.reflection;
+    eprintln!(
+        "uniform 8 spp: rmse {eu:.4}, {} rays; adaptive 0.2/1: rmse {ea:.4}, {} rays",
+        rays(&uniform),
+        rays(&adapted)
+    );
+    assert!(ea < eu, "{ea} against {eu}");
+    assert!(4 * rays(&adapted) < 3 * rays(&uniform));
+    // Deeper cuts and a lower threshold bring it closer to the reference.
+    let finer = render(
+        &s,
+        &RenderSettings {
+            adaptive: adaptive(0.05, 3, false),
+            ..base
+        },
+        &(),
+    )
+    .unwrap();
+    assert!(rmse(&finer.film, &reference) < 0.7 * ea);
+}
+
+#[test]
+fn adaptive_keys_are_checked() {
+    let err = |render: &str| {
+        Scene::from_toml(
+            &format!("[render]\n{render}\n[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\n"),
+            "test",
+        )
+        .err()
+        .map(|e| e.to_string())
+        .unwrap_or_default()
+    };
+    assert!(err("adaptive = { depth = 9 }").contains("adaptive.depth"));
+    assert!(err("adaptive = { threshold = -1 }").contains("adaptive.threshold"));
+    assert!(err("adaptive = { thresold = 0.1 }").contains("thresold"));
+    let ok = scene("[render]\nadaptive = {}\n[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\n");
+    // POV-Ray's defaults: +A0.3, +R3.
+    assert_eq!(ok.settings.adaptive, adaptive(0.3, 3, false));
+    assert!(ok.settings.pixel_key().contains("adaptive=0.3/3"));
+}
