@@ -58,7 +58,11 @@ fn main() {
         );
     };
     for spp in [1, 2, 4, 8, 16, 32, 64] {
-        print("uniform", format!("{spp} spp"), run(RenderSettings { spp, ..base }));
+        print(
+            "uniform",
+            format!("{spp} spp"),
+            run(RenderSettings { spp, ..base }),
+        );
     }
     for depth in [1, 2, 3] {
         for threshold in [0.4, 0.2, 0.1, 0.05, 0.025, 0.0125] {
@@ -71,7 +75,11 @@ fn main() {
                 adaptive: Some(adaptive),
                 ..base
             });
-            print("adaptive", format!("threshold {threshold} depth {depth}"), out);
+            print(
+                "adaptive",
+                format!("threshold {threshold} depth {depth}"),
+                out,
+            );
         }
     }
 }

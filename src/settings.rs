@@ -134,7 +134,7 @@ impl RenderSettings {
                 self.max_depth
             ))
         } else if let Some(a) = self.adaptive
-            && (a.depth > MAX_ADAPTIVE_DEPTH || !(a.threshold >= 0.0))
+            && (a.depth > MAX_ADAPTIVE_DEPTH || a.threshold.is_nan() || a.threshold < 0.0)
         {
             Err(format!(
                 "adaptive anti-aliasing: depth {} must be between 0 and {MAX_ADAPTIVE_DEPTH} and threshold {} a number ≥ 0",

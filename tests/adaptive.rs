@@ -48,11 +48,24 @@ fn any_region_split_and_thread_count_gives_the_whole_renders_bits() {
             ..s.settings
         };
         let whole = render(&s, &settings, &()).unwrap().film;
-        let one = render(&s, &RenderSettings { threads: Some(1), ..settings }, &()).unwrap();
+        let one = render(
+            &s,
+            &RenderSettings {
+                threads: Some(1),
+                ..settings
+            },
+            &(),
+        )
+        .unwrap();
         assert_eq!(whole.pixels(), one.film.pixels());
         // Uneven cuts, so that tiles of the parts lie elsewhere than the
         // whole render's.
-        for (x0, x1, y0, y1) in [(0, 37, 0, 23), (37, 80, 0, 23), (0, 37, 23, 50), (37, 80, 23, 50)] {
+        for (x0, x1, y0, y1) in [
+            (0, 37, 0, 23),
+            (37, 80, 0, 23),
+            (0, 37, 23, 50),
+            (37, 80, 23, 50),
+        ] {
             let region = Region { x0, x1, y0, y1 };
             let part = render_region(&s, &settings, region, &()).unwrap().film;
             for y in y0..y1 {
@@ -84,7 +97,12 @@ fn a_flat_picture_costs_its_corners_and_centres_once() {
         ..s.settings
     };
     let out = render(&s, &settings, &()).unwrap();
-    assert!(out.film.pixels().iter().all(|p| *p == DVec3::new(0.2, 0.3, 0.4)));
+    assert!(
+        out.film
+            .pixels()
+            .iter()
+            .all(|p| *p == DVec3::new(0.2, 0.3, 0.4))
+    );
     let mut expected = 0;
     for tx in (0..w).step_by(16) {
         for ty in (0..h).step_by(16) {
@@ -103,9 +121,17 @@ fn on_edges_it_beats_uniform_sampling_with_fewer_rays() {
         height: 100,
         ..s.settings
     };
-    let reference = render(&s, &RenderSettings { spp: 256, seed: 99, ..base }, &())
-        .unwrap()
-        .film;
+    let reference = render(
+        &s,
+        &RenderSettings {
+            spp: 256,
+            seed: 99,
+            ..base
+        },
+        &(),
+    )
+    .unwrap()
+    .film;
     let uniform = render(&s, &RenderSettings { spp: 8, ..base }, &()).unwrap();
     let adapted = render(
         &s,
@@ -116,7 +142,10 @@ fn on_edges_it_beats_uniform_sampling_with_fewer_rays() {
         &(),
     )
     .unwrap();
-    let (eu, ea) = (rmse(&uniform.film, &reference), rmse(&adapted.film, &reference));
+    let (eu, ea) = (
+        rmse(&uniform.film, &reference),
+        rmse(&adapted.film, &reference),
+    );
     let rays = |o: &prism::RenderOutput| o.stats.camera + o.stats.shadow + o.stats.reflection;
     eprintln!(
         "uniform 8 spp: rmse {eu:.4}, {} rays; adaptive 0.2/1: rmse {ea:.4}, {} rays",
@@ -152,7 +181,8 @@ fn adaptive_keys_are_checked() {
     assert!(err("adaptive = { depth = 9 }").contains("adaptive.depth"));
     assert!(err("adaptive = { threshold = -1 }").contains("adaptive.threshold"));
     assert!(err("adaptive = { thresold = 0.1 }").contains("thresold"));
-    let ok = scene("[render]\nadaptive = {}\n[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\n");
+    let ok =
+        scene("[render]\nadaptive = {}\n[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\n");
     // POV-Ray's defaults: +A0.3, +R3.
     assert_eq!(ok.settings.adaptive, adaptive(0.3, 3, false));
     assert!(ok.settings.pixel_key().contains("adaptive=0.3/3"));

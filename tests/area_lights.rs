@@ -163,7 +163,10 @@ fn a_disk_gives_lamberts_irradiance_on_its_axis() {
     );
     // A tilted disk off its axis, against the closed form of a polygon of
     // 720 sides inscribed in it (within 2e-5 of the disk's irradiance).
-    let (c, n) = (DVec3::new(0.3, 0.1, 1.2), DVec3::new(0.3, -0.2, -1.0).normalize());
+    let (c, n) = (
+        DVec3::new(0.3, 0.1, 1.2),
+        DVec3::new(0.3, -0.2, -1.0).normalize(),
+    );
     let light = format!(
         "type = \"disk\"\nposition = [{}, {}, {}]\nnormal = [{}, {}, {}]\nradius = 0.5\ncolor = [1, 1, 1]\nintensity = 1\nsamples = 400",
         c.x, c.y, c.z, n.x, n.y, n.z
@@ -183,7 +186,10 @@ fn a_disk_gives_lamberts_irradiance_on_its_axis() {
         reference += lambert_polygon(*p, DVec3::Z, &polygon, 1.0);
     }
     eprintln!("tilted disk off its axis: {:+.2e}", mean / reference - 1.0);
-    assert!((mean / reference - 1.0).abs() < 0.005, "{mean} against {reference}");
+    assert!(
+        (mean / reference - 1.0).abs() < 0.005,
+        "{mean} against {reference}"
+    );
 }
 
 #[test]
@@ -281,7 +287,8 @@ fn area_light_keys_are_checked() {
     };
     let m = err("type = \"rectangle\"\nposition = [0, 1, 0]\nedge_u = [1, 0, 0]");
     assert!(m.contains("needs `edge_v`"), "{m}");
-    let m = err("type = \"rectangle\"\nposition = [0, 1, 0]\nedge_u = [1, 0, 0]\nedge_v = [2, 0, 0]");
+    let m =
+        err("type = \"rectangle\"\nposition = [0, 1, 0]\nedge_u = [1, 0, 0]\nedge_v = [2, 0, 0]");
     assert!(m.contains("span no area"), "{m}");
     let m = err("type = \"disk\"\nposition = [0, 1, 0]\nradius = 1");
     assert!(m.contains("needs `normal`"), "{m}");
@@ -294,7 +301,9 @@ fn area_light_keys_are_checked() {
     let m = err("type = \"point\"\nposition = [0, 1, 0]\ntwo_sided = true");
     assert!(m.contains("`two_sided` does not apply"), "{m}");
     // The power of a light of radiance L and area A is π·A·L.
-    let s = scene(&format!("{CAMERA}[lights.a]\ntype = \"disk\"\nposition = [0, 1, 0]\nnormal = [0, -1, 0]\nradius = 0.5"));
+    let s = scene(&format!(
+        "{CAMERA}[lights.a]\ntype = \"disk\"\nposition = [0, 1, 0]\nnormal = [0, -1, 0]\nradius = 0.5"
+    ));
     let area = s.lights[0].shape.area();
     assert!((area - std::f64::consts::PI * 0.25).abs() < 1e-15);
 }
@@ -306,9 +315,30 @@ fn area_lights_render_the_same_bits_on_one_and_two_threads() {
         "[[objects]]\ntype = \"sphere\"\nmaterial = \"white\"\ncenter = [0.5, 0, 0.6]\nradius = 0.4\n[[objects]]",
     );
     let s = scene(&text);
-    let one = render(&s, &RenderSettings { threads: Some(1), ..s.settings }, &()).unwrap();
-    let two = render(&s, &RenderSettings { threads: Some(2), ..s.settings }, &()).unwrap();
+    let one = render(
+        &s,
+        &RenderSettings {
+            threads: Some(1),
+            ..s.settings
+        },
+        &(),
+    )
+    .unwrap();
+    let two = render(
+        &s,
+        &RenderSettings {
+            threads: Some(2),
+            ..s.settings
+        },
+        &(),
+    )
+    .unwrap();
     assert_eq!(one.film.pixels(), two.film.pixels());
     // The sphere's shadow is there: some pixels darker than the open floor.
-    assert!(one.film.pixels().iter().any(|p| p.y < 0.5 * two.film.pixels()[0].y));
+    assert!(
+        one.film
+            .pixels()
+            .iter()
+            .any(|p| p.y < 0.5 * two.film.pixels()[0].y)
+    );
 }

@@ -56,12 +56,18 @@ fn furnace(material: &str, max_depth: u32) -> Scene {
 #[test]
 fn a_glossy_mirror_under_a_uniform_sky_returns_kr_times_the_sky() {
     for roughness in [0.1, 0.5, 1.0] {
-        let s = furnace(&format!("kr = 0.7\nroughness = {roughness}\nsamples = 9"), 8);
+        let s = furnace(
+            &format!("kr = 0.7\nroughness = {roughness}\nsamples = 9"),
+            8,
+        );
         let (film, stats) = film(&s, 2);
         let on_ball = film.pixels().iter().filter(|p| **p != SKY).count();
         for p in film.pixels() {
             if *p != SKY {
-                assert!((*p - 0.7 * SKY).abs().max_element() < 1e-12, "{roughness}: {p}");
+                assert!(
+                    (*p - 0.7 * SKY).abs().max_element() < 1e-12,
+                    "{roughness}: {p}"
+                );
             }
         }
         // The ball is there, and each of its pixels sent nine rays.
@@ -84,7 +90,10 @@ fn a_rough_glass_ball_under_a_uniform_sky_vanishes() {
     }
     // At 64 a few are (one in four rays of a pixel gives 3/4 of the sky),
     // and nothing is ever brighter than the sky.
-    let (cut, _) = self::film(&furnace("kt = 1\nior = 1.5\nroughness = 0.6\nsamples = 4", 64), 2);
+    let (cut, _) = self::film(
+        &furnace("kt = 1\nior = 1.5\nroughness = 0.6\nsamples = 4", 64),
+        2,
+    );
     let dimmer = cut.pixels().iter().filter(|p| **p != SKY).count();
     assert!(dimmer <= 4, "{dimmer}");
     assert!(cut.pixels().iter().all(|p| p.cmple(SKY + 1e-12).all()));

@@ -714,16 +714,43 @@ fn a_lens_adaptive_sampling_and_an_area_light_merge_to_the_whole_image_byte_for_
         ("c", "0,29,17,41"),
         ("d", "29,72,17,41"),
     ] {
-        run(&["--crop", crop, "-o", &format!("{name}.exr"), "--threads", "1"]);
+        run(&[
+            "--crop",
+            crop,
+            "-o",
+            &format!("{name}.exr"),
+            "--threads",
+            "1",
+        ]);
     }
-    ok(d, &["merge", "c.exr", "a.exr", "d.exr", "b.exr", "-o", "g.exr"]);
+    ok(
+        d,
+        &["merge", "c.exr", "a.exr", "d.exr", "b.exr", "-o", "g.exr"],
+    );
     assert!(bytes(d, "whole.exr") == bytes(d, "g.exr"), "crops differ");
     // A part rendered without adaptive sampling does not merge with them.
-    let plain = std::fs::read_to_string(d.join("s.toml"))
-        .unwrap()
-        .replace("adaptive = { threshold = 0.05, depth = 2, jitter = true }\n", "");
+    let plain = std::fs::read_to_string(d.join("s.toml")).unwrap().replace(
+        "adaptive = { threshold = 0.05, depth = 2, jitter = true }\n",
+        "",
+    );
     std::fs::write(d.join("p.toml"), plain).unwrap();
-    ok(d, &[&["render", "p.toml", "-q"], &size[..], &["--crop", "0,29,0,17", "-o", "pa.exr"]].concat());
-    let o = prism(d, &["merge", "pa.exr", "b.exr", "c.exr", "d.exr", "-o", "x.exr"]);
-    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    ok(
+        d,
+        &[
+            &["render", "p.toml", "-q"],
+            &size[..],
+            &["--crop", "0,29,0,17", "-o", "pa.exr"],
+        ]
+        .concat(),
+    );
+    let o = prism(
+        d,
+        &["merge", "pa.exr", "b.exr", "c.exr", "d.exr", "-o", "x.exr"],
+    );
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
 }

@@ -142,7 +142,13 @@ impl LightShape {
     /// The area light's point at (x, y) of the square [−1, 1]² (rectangle)
     /// or the unit disk, from a point `u` of the unit square.
     #[inline]
-    fn area_point(center: DVec3, axis_u: DVec3, axis_v: DVec3, outline: AreaOutline, u: DVec2) -> DVec3 {
+    fn area_point(
+        center: DVec3,
+        axis_u: DVec3,
+        axis_v: DVec3,
+        outline: AreaOutline,
+        u: DVec2,
+    ) -> DVec3 {
         let p = match outline {
             AreaOutline::Rectangle => 2.0 * u - DVec2::ONE,
             AreaOutline::Disk => concentric_disk(u),
@@ -240,7 +246,13 @@ pub enum LightSampler {
 /// light's normal and the way back), 0 where the point sees the back of a
 /// one-sided light. d² is bounded below as for point lights.
 #[inline]
-pub fn area_weight(area: f64, normal: DVec3, towards: DVec3, distance_squared: f64, two_sided: bool) -> f64 {
+pub fn area_weight(
+    area: f64,
+    normal: DVec3,
+    towards: DVec3,
+    distance_squared: f64,
+    two_sided: bool,
+) -> f64 {
     let cos = -normal.dot(towards);
     let cos = if two_sided { cos.abs() } else { cos.max(0.0) };
     const NEAREST: f64 = crate::limits::MIN_LENGTH * crate::limits::MIN_LENGTH;
@@ -373,7 +385,9 @@ impl LightSampler {
             } => {
                 let radius = match outline {
                     // The farther corner.
-                    AreaOutline::Rectangle => (axis_u + axis_v).length().max((axis_u - axis_v).length()),
+                    AreaOutline::Rectangle => {
+                        (axis_u + axis_v).length().max((axis_u - axis_v).length())
+                    }
                     // The longer axis (an ellipse lies within its circle).
                     AreaOutline::Disk => axis_u.length().max(axis_v.length()),
                 };
@@ -428,13 +442,23 @@ impl LightSampler {
         else {
             unreachable!("area_sample of an area light only");
         };
-        let on_light = LightShape::area_point(center, axis_u, axis_v, outline, strata.point_at(index, jitter));
+        let on_light = LightShape::area_point(
+            center,
+            axis_u,
+            axis_v,
+            outline,
+            strata.point_at(index, jitter),
+        );
         let to_light = on_light - point;
         let distance_squared = to_light.length_squared();
         let distance = distance_squared.sqrt();
         // A point on the light itself has no direction towards it: zero,
         // which the shading skips, as for point lights.
-        let direction = if distance > 0.0 { to_light / distance } else { DVec3::ZERO };
+        let direction = if distance > 0.0 {
+            to_light / distance
+        } else {
+            DVec3::ZERO
+        };
         LightSample {
             direction,
             distance,

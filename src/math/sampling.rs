@@ -140,6 +140,7 @@ pub fn concentric_disk(u: DVec2) -> DVec2 {
 }
 
 #[cfg(test)]
+#[allow(clippy::disallowed_methods)] // references computed with the platform's functions
 mod tests {
     use super::*;
 

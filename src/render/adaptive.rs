@@ -202,7 +202,7 @@ fn differ(c: &[DVec3], threshold: f64) -> bool {
     }
     let low = c.iter().fold(c[0], |a, b| a.min(*b));
     let high = c.iter().fold(c[0], |a, b| a.max(*b));
-    !((high - low).max_element() <= threshold)
+    (high - low).max_element() > threshold
 }
 
 #[cfg(test)]

@@ -119,7 +119,7 @@ pub fn render_region(
         |tracer, y, xs, stats, out| match settings.adaptive {
             Some(a) => {
                 // Tiles start every TILE rows from the region's top.
-                let tile_top = (y - region.y0) % TILE == 0;
+                let tile_top = (y - region.y0).is_multiple_of(TILE);
                 adaptive::render_row_adaptive(
                     scene, tracer, settings, a, y, xs, tile_top, stats, out,
                 );

@@ -932,7 +932,9 @@ impl Check<'_, '_> {
                 let Some(normal) = normal.filter(|n| n.is_finite()) else {
                     self.error(
                         desc.span(),
-                        format!("{label}: `edge_u` and `edge_v` span no area (zero or parallel edges)"),
+                        format!(
+                            "{label}: `edge_u` and `edge_v` span no area (zero or parallel edges)"
+                        ),
                     );
                     return None;
                 };

@@ -76,6 +76,7 @@ fn fold(d: DVec3, n: DVec3, side: f64) -> DVec3 {
 }
 
 #[cfg(test)]
+#[allow(clippy::disallowed_methods)] // references computed with the platform's functions
 mod tests {
     use super::*;
     use crate::math::rng::PixelRng;
@@ -122,7 +123,10 @@ mod tests {
                 let x = alpha * alpha * f64::from(k) / f64::from(10 - k);
                 let below = tan2.partition_point(|&t| t <= x) as f64 / count as f64;
                 let expected = x / (alpha * alpha + x);
-                assert!((below - expected).abs() < 0.006, "α {alpha}: {below} against {expected}");
+                assert!(
+                    (below - expected).abs() < 0.006,
+                    "α {alpha}: {below} against {expected}"
+                );
             }
         }
     }
