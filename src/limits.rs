@@ -19,6 +19,8 @@ pub const MAX_THREADS: u32 = 1024;
 /// Most cuts of adaptive anti-aliasing: at most (2⁹ + 1)² samples to a
 /// pixel, and lattice coordinates (side × 2⁹) fit in 32 bits.
 pub const MAX_ADAPTIVE_DEPTH: u32 = 8;
+/// Most instants a shutter is sampled at (each is a scene built apart).
+pub const MAX_SHUTTER_SAMPLES: u32 = 256;
 /// Most shadow feelers per sphere light and shading point.
 pub const MAX_LIGHT_SAMPLES: u32 = 65_536;
 

@@ -20,6 +20,28 @@ pub struct Adaptive {
     pub jitter: bool,
 }
 
+/// An open shutter (motion blur): each camera sample sees the scene at
+/// its own time between `open` and `close`, in frames after the frame
+/// being rendered, taken at `samples` instants (see `Scene::motion`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Shutter {
+    /// When the shutter opens, in frames from the frame's start.
+    pub open: f64,
+    /// When it closes (≥ `open`).
+    pub close: f64,
+    /// Instants the exposure is cut into, each at the middle of its share.
+    pub samples: u32,
+}
+
+impl Shutter {
+    /// The instant of share `k` of `samples`, in frames from the frame's
+    /// start: the middle of [open + k/n, open + (k+1)/n] of the exposure.
+    pub fn instant(&self, k: u32) -> f64 {
+        let share = (f64::from(k) + 0.5) / f64::from(self.samples);
+        self.open + share * (self.close - self.open)
+    }
+}
+
 /// How to render: resolution, sampling and recursion limits.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderSettings {
@@ -49,6 +71,8 @@ pub struct RenderSettings {
     pub aspect: Option<f64>,
     /// Adaptive anti-aliasing instead of `spp` stratified samples.
     pub adaptive: Option<Adaptive>,
+    /// An open shutter: motion blur of what the scene animates.
+    pub shutter: Option<Shutter>,
 }
 
 /// The image size for a camera made for images `aspect` wide per unit of
@@ -140,6 +164,18 @@ impl RenderSettings {
                 "adaptive anti-aliasing: depth {} must be between 0 and {MAX_ADAPTIVE_DEPTH} and threshold {} a number ≥ 0",
                 a.depth, a.threshold
             ))
+        } else if let Some(sh) = self.shutter
+            && (!sh.open.is_finite()
+                || !sh.close.is_finite()
+                || sh.close < sh.open
+                || sh.samples == 0
+                || sh.samples > MAX_SHUTTER_SAMPLES)
+        {
+            Err(format!(
+                "shutter [{}, {}] with {} samples: it must open before it closes, at finite times, \
+                 with 1 to {MAX_SHUTTER_SAMPLES} samples",
+                sh.open, sh.close, sh.samples
+            ))
         } else {
             Ok(())
         }
@@ -163,6 +199,9 @@ impl RenderSettings {
         if let Some(a) = self.adaptive {
             let jitter = if a.jitter { "/jitter" } else { "" };
             key.push_str(&format!(" adaptive={}/{}{jitter}", a.threshold, a.depth));
+        }
+        if let Some(sh) = self.shutter {
+            key.push_str(&format!(" shutter={}/{}/{}", sh.open, sh.close, sh.samples));
         }
         key
     }
@@ -201,6 +240,7 @@ impl Default for RenderSettings {
             exposure: 0.0,
             aspect: None,
             adaptive: None,
+            shutter: None,
         }
     }
 }

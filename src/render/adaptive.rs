@@ -184,6 +184,14 @@ fn lattice_sample(
         point += (u - 0.5) * spacing;
     }
     let (x, y) = (point.x / scale, point.y / scale);
+    // An open shutter: the point's own time, uniform over the exposure.
+    let scene = if scene.motion.is_empty() {
+        scene
+    } else {
+        let n = scene.motion.len();
+        &scene.motion[((rng.uniform() * n as f64) as usize).min(n - 1)]
+    };
+    let tracer = tracer.for_scene(scene);
     let camera = &scene.camera;
     let ray = if camera.lens.is_some() {
         let disk = concentric_disk(DVec2::new(rng.uniform(), rng.uniform()));

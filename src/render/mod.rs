@@ -231,6 +231,14 @@ pub fn render_row(
     stats: &mut RayStats,
     out: &mut Vec<DVec3>,
 ) {
+    if !scene.motion.is_empty() {
+        // Neighbouring pixels' samples look at different instants: no
+        // packets of one scene to trace.
+        for x in xs {
+            out.push(render_pixel(scene, tracer, settings, x, y, stats));
+        }
+        return;
+    }
     let seed = frame_seed(settings.seed, settings.frame);
     let strata = Strata::new(settings.spp as usize);
     let spp = strata.len();
@@ -279,10 +287,16 @@ pub fn render_pixel_recorded<R: Recorder>(
     let strata = Strata::new(settings.spp as usize);
     let spp = strata.len();
     let lens_key = lens_key(scene, &mut rng);
+    let time_key = time_key(scene, &mut rng);
     let mut sum = DVec3::ZERO;
     let mut sample_radiance = DVec3::ZERO;
     let mut sample_lens = None;
     for s in 0..spp {
+        let instant = instant_of(scene, s, spp, time_key, &mut rng);
+        let (scene, tracer) = match instant {
+            Some(k) => (&scene.motion[k], tracer.for_scene(&scene.motion[k])),
+            None => (scene, tracer.for_scene(scene)),
+        };
         let (ray, lens) = camera_ray(scene, settings, &strata, s, x, y, lens_key, &mut rng);
         let radiance = if recorded.is_none_or(|k| k == s) {
             let r = tracer.radiance_recorded(&ray, &mut rng, stats, recorder);
@@ -309,6 +323,31 @@ fn lens_key(scene: &Scene, rng: &mut PixelRng) -> u32 {
     } else {
         0
     }
+}
+
+/// The key of the pixel's pairing of samples with shares of the exposure,
+/// drawn (after the lens key) only when the shutter is open on something
+/// that moves, so other pictures keep their bits.
+fn time_key(scene: &Scene, rng: &mut PixelRng) -> u32 {
+    if scene.motion.is_empty() {
+        0
+    } else {
+        (rng.uniform() * 4_294_967_296.0) as u32
+    }
+}
+
+/// Which of the shutter's instants sample `s` of `spp` looks at (`None`:
+/// the scene itself, no shutter): its time is stratified over the
+/// exposure, share `permutation_element(s, spp, key)` (a shuffle per pixel,
+/// as for the lens), jittered within the share by the pixel's stream, and
+/// the instant is the one whose share of the exposure holds that time.
+fn instant_of(scene: &Scene, s: usize, spp: usize, key: u32, rng: &mut PixelRng) -> Option<usize> {
+    if scene.motion.is_empty() {
+        return None;
+    }
+    let share = permutation_element(s as u32, spp as u32, key);
+    let time = (f64::from(share) + rng.uniform()) / spp as f64;
+    Some(((time * scene.motion.len() as f64) as usize).min(scene.motion.len() - 1))
 }
 
 /// The camera ray of sample `s` of pixel (x, y): through the pixel's

@@ -94,6 +94,18 @@ pub fn check(
     options: &LoadOptions,
     diags: &mut Diagnostics,
 ) -> Option<Checked> {
+    check_at(file, base_dir, options, 0.0, diags)
+}
+
+/// [`check`] with keyed values taken `offset` frames after the frame
+/// `options` names (an instant of an open shutter).
+pub fn check_at(
+    file: SceneFile,
+    base_dir: &Path,
+    options: &LoadOptions,
+    offset: f64,
+    diags: &mut Diagnostics,
+) -> Option<Checked> {
     let mut c = Check {
         diags,
         base_dir: base_dir.to_path_buf(),
@@ -109,7 +121,8 @@ pub fn check(
         model_failed: false,
         camera_request_failed: false,
         warnings: Vec::new(),
-        frame: f64::from(options.frame),
+        frame: f64::from(options.frame) + offset,
+        offset,
         interpolation: Interpolation::Linear,
         keyed: false,
     };
@@ -300,6 +313,7 @@ pub fn check(
             animation,
             animated: c.keyed,
             names,
+            motion: Vec::new(),
         },
     })
 }
@@ -312,6 +326,12 @@ pub struct Checked {
 }
 
 impl Checked {
+    /// Whether the scene has an open shutter and keyed values: then its
+    /// instants are built too.
+    pub fn shutter_open(&self) -> bool {
+        self.scene.settings.shutter.is_some() && self.scene.animated
+    }
+
     /// What loading built and read so far.
     pub fn inventory_mut(&mut self) -> &mut super::Inventory {
         &mut self.scene.inventory
@@ -357,6 +377,8 @@ struct Check<'d, 's> {
     warnings: Vec<String>,
     /// The frame keyed values are taken at.
     frame: f64,
+    /// How far `frame` lies after the frame asked for (a shutter's instant).
+    offset: f64,
     interpolation: Interpolation,
     /// Whether any value is keyed.
     keyed: bool,
@@ -527,7 +549,8 @@ impl Check<'_, '_> {
             );
             return None;
         }
-        if self.frame >= f64::from(frames) {
+        // The frame asked for (an instant of its shutter may lie past it).
+        if self.frame - self.offset >= f64::from(frames) {
             self.error(
                 d.frames.span(),
                 format!(
@@ -547,6 +570,39 @@ impl Check<'_, '_> {
             ),
         );
         Some(Animation { frames, fps })
+    }
+
+    /// `shutter = [open, close]` and `shutter_samples`.
+    fn shutter(&mut self, r: &RenderDesc) -> Option<crate::settings::Shutter> {
+        let samples = self.count(
+            &r.shutter_samples,
+            16,
+            "shutter_samples",
+            limits::MAX_SHUTTER_SAMPLES,
+        );
+        let Some(times) = &r.shutter else {
+            if let Some(s) = &r.shutter_samples {
+                self.error(
+                    s.span(),
+                    "`shutter_samples` needs `shutter = [open, close]`".into(),
+                );
+            }
+            return None;
+        };
+        let [open, close] = *times.get_ref();
+        let bound = f64::from(limits::MAX_FRAMES);
+        if !(open.abs() <= bound && close.abs() <= bound && open <= close) {
+            self.error(
+                times.span(),
+                format!("`shutter` = [{open}, {close}]: the shutter opens before it closes, within ±{bound} frames"),
+            );
+            return None;
+        }
+        Some(crate::settings::Shutter {
+            open,
+            close,
+            samples,
+        })
     }
 
     fn settings(&mut self, r: &RenderDesc) -> RenderSettings {
@@ -580,6 +636,7 @@ impl Check<'_, '_> {
                     jitter: a.jitter.unwrap_or(false),
                 }
             }),
+            shutter: self.shutter(r),
         }
     }
 

@@ -260,6 +260,17 @@ impl DictScene {
                     .collect();
                 let inventory = checked.inventory_mut();
                 inventory.content_hash = super::content_hash(&text, &inventory.files_read);
+                if checked.shutter_open() {
+                    // Each instant is the scene built again from its text;
+                    // a dict is walked once.
+                    return Err(vec![Problem {
+                        key_path: "render.shutter".into(),
+                        message:
+                            "an open shutter on keyed values (motion blur) needs the scene as \
+                                  TOML text (prism.loads), which is built again at each instant"
+                                .into(),
+                    }]);
+                }
                 Ok(checked.finish())
             }
             _ => Err(diags

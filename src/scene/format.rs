@@ -82,6 +82,10 @@ pub struct RenderDesc {
     pub exposure: Option<Number>,
     /// Adaptive anti-aliasing.
     pub adaptive: Option<Spanned<AdaptiveDesc>>,
+    /// Motion blur: when the shutter opens and closes, in frames.
+    pub shutter: Option<Spanned<[f64; 2]>>,
+    /// Instants the shutter is sampled at.
+    pub shutter_samples: Option<Spanned<u32>>,
 }
 
 /// Camera projections.

@@ -59,6 +59,11 @@ pub struct Scene {
     pub animated: bool,
     /// What the file calls its objects, materials and lights.
     pub names: Names,
+    /// With an open shutter and something keyed: the scene at each of the
+    /// shutter's instants (`RenderSettings::shutter`), in order; camera
+    /// sample at time t looks at the instant whose share holds t. Empty
+    /// otherwise: nothing moves.
+    pub motion: Vec<Scene>,
 }
 
 /// Names from the scene file, for messages and `prism explain`.
@@ -222,7 +227,28 @@ impl Scene {
         base_dir: &Path,
         options: &LoadOptions,
     ) -> Result<Scene, SceneError> {
-        check(source, origin, base_dir, options).map(build::Checked::finish)
+        let scene = check(source, origin, base_dir, options)?.finish();
+        scene.with_motion(|offset| {
+            check_at(source, origin, base_dir, options, offset).map(build::Checked::finish)
+        })
+    }
+
+    /// The scene with its shutter's instants built (see [`motion`](Self::motion))
+    /// by `build_at(offset)`, when it has a shutter and keys.
+    fn with_motion(
+        mut self,
+        build_at: impl Fn(f64) -> Result<Scene, SceneError>,
+    ) -> Result<Scene, SceneError> {
+        let Some(shutter) = self.settings.shutter else {
+            return Ok(self);
+        };
+        if !self.animated {
+            return Ok(self);
+        }
+        self.motion = (0..shutter.samples)
+            .map(|k| build_at(shutter.instant(k)))
+            .collect::<Result<_, _>>()?;
+        Ok(self)
     }
 
     /// Reads and builds the scene file at `path`.
@@ -272,11 +298,18 @@ impl Scene {
                     .parent()
                     .filter(|p| !p.as_os_str().is_empty())
                     .unwrap_or(Path::new("."));
-                let checked = check(&source, &origin, base_dir, options);
-                // The text can be large (a million objects): let it go
-                // before the BVH is built.
-                drop(source);
-                checked.map(build::Checked::finish)
+                let checked = check(&source, &origin, base_dir, options)?;
+                let wants_motion = checked.shutter_open();
+                if !wants_motion {
+                    // The text can be large (a million objects): let it go
+                    // before the BVH is built.
+                    drop(source);
+                    return Ok(checked.finish());
+                }
+                checked.finish().with_motion(|offset| {
+                    check_at(&source, &origin, base_dir, options, offset)
+                        .map(build::Checked::finish)
+                })
             }
             Err(e) => {
                 let valid = std::str::from_utf8(&e.as_bytes()[..e.utf8_error().valid_up_to()])
@@ -372,9 +405,20 @@ fn check(
     base_dir: &Path,
     options: &LoadOptions,
 ) -> Result<build::Checked, SceneError> {
+    check_at(source, origin, base_dir, options, 0.0)
+}
+
+/// [`check`] with keyed values `offset` frames after the frame asked for.
+fn check_at(
+    source: &str,
+    origin: &str,
+    base_dir: &Path,
+    options: &LoadOptions,
+    offset: f64,
+) -> Result<build::Checked, SceneError> {
     let mut diags = error::Diagnostics::new(source);
     let checked = load::parse(source, &mut diags)
-        .and_then(|file| build::check(file, base_dir, options, &mut diags));
+        .and_then(|file| build::check_at(file, base_dir, options, offset, &mut diags));
     match checked {
         Some(mut checked) if diags.is_empty() => {
             let inventory = checked.inventory_mut();

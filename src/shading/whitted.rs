@@ -242,6 +242,14 @@ impl<'a> Whitted<'a> {
         Whitted { scene, settings }
     }
 
+    /// The same tracer for another scene (an instant of an open shutter).
+    pub fn for_scene<'b>(&self, scene: &'b Scene) -> Whitted<'b> {
+        Whitted {
+            scene,
+            settings: self.settings,
+        }
+    }
+
     /// The colour seen along a camera ray.
     pub fn radiance(&self, ray: &Ray, rng: &mut PixelRng, stats: &mut RayStats) -> DVec3 {
         self.radiance_recorded(ray, rng, stats, &mut ())
