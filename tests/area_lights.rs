@@ -342,3 +342,26 @@ fn area_lights_render_the_same_bits_on_one_and_two_threads() {
             .any(|p| p.y < 0.5 * two.film.pixels()[0].y)
     );
 }
+
+#[test]
+fn explain_lists_each_feelers_point_on_the_area_light() {
+    // 100 feelers to the tilted rectangle: the first 64 listed, each on
+    // the light (in its plane, within its edges), the rest counted.
+    let s = scene(&floor_scene(&rectangle(100), 0.9, 0.2, 0.5, 8));
+    let e = prism::render::explain::explain(&s, &s.settings, 4, 4, 0).unwrap();
+    let terms = &e.tree.lights[0];
+    assert_eq!(terms.feelers, 100);
+    assert_eq!(terms.feeler_points.len(), 64);
+    assert_eq!(terms.feeler_points_left_out, 36);
+    let normal = RECT_EDGE_U.cross(RECT_EDGE_V).normalize();
+    for f in &terms.feeler_points {
+        let p = DVec3::from(f.on_light.expect("a point on the light")) - RECT_CENTER;
+        assert!(p.dot(normal).abs() < 1e-12, "{p}");
+        let (u, v) = (
+            p.dot(RECT_EDGE_U) / RECT_EDGE_U.length_squared(),
+            p.dot(RECT_EDGE_V) / RECT_EDGE_V.length_squared(),
+        );
+        assert!(u.abs() <= 0.5 + 1e-12 && v.abs() <= 0.5 + 1e-12, "{u} {v}");
+        assert!(f.weight > 0.0 && f.visibility == [1.0; 3]);
+    }
+}

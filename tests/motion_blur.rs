@@ -161,3 +161,28 @@ fn shutter_keys_are_checked() {
     assert!(err("shutter = [0, 1]\nshutter_samples = 0").contains("shutter_samples"));
     assert!(err("shutter = [0, 1]\nshutter_samples = 100000").contains("shutter_samples"));
 }
+
+#[test]
+fn explain_names_the_instant_a_sample_sees() {
+    let s = moving_ball("shutter = [0.25, 0.75]\nshutter_samples = 8");
+    let instants: Vec<f64> = (0..8).map(|k| 0.25 + (f64::from(k) + 0.5) / 16.0).collect();
+    let mut seen = std::collections::BTreeSet::new();
+    for sample in 0..64 {
+        let e = prism::render::explain::explain(&s, &s.settings, 60, 20, sample).unwrap();
+        let t = e.time.expect("an instant");
+        let k = instants
+            .iter()
+            .position(|&i| (i - t).abs() < 1e-12)
+            .expect("one of the instants");
+        seen.insert(k);
+    }
+    // 64 stratified samples over 8 instants: every instant is seen.
+    assert_eq!(seen.len(), 8);
+    let still = moving_ball("");
+    assert_eq!(
+        prism::render::explain::explain(&still, &still.settings, 60, 20, 0)
+            .unwrap()
+            .time,
+        None
+    );
+}

@@ -106,7 +106,7 @@ impl Recorder for PixelRecord {
         self.camera = false;
     }
 
-    fn feeler(&mut self, _: usize, _: DVec3, _: f64, _: DVec3) {
+    fn feeler(&mut self, _: usize, _: &crate::lights::LightSample, _: DVec3) {
         self.feelers += 1;
     }
 }

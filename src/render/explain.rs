@@ -13,7 +13,7 @@ use serde::Serialize;
 
 use super::{RayStats, RenderSettings, render_pixel_recorded};
 use crate::geometry::Hit;
-use crate::lights::{LightShape, spot_attenuation};
+use crate::lights::{LightSample, LightShape, spot_attenuation};
 use crate::math::Ray;
 use crate::scene::Scene;
 use crate::shading::whitted::{RayKind, Recorder, Stop, Whitted, WhittedSettings};
@@ -107,6 +107,10 @@ pub struct LightTerms {
     /// A spot light: the mean share of its intensity its cone sends
     /// towards the point (1 inside the inner cone, 0 outside the outer).
     pub spot_cone: Option<f64>,
+    /// The first feelers one by one (at most 64).
+    pub feeler_points: Vec<FeelerPoint>,
+    /// Feelers sent beyond those listed.
+    pub feeler_points_left_out: usize,
 }
 
 /// A pixel's sample explained.
@@ -126,6 +130,9 @@ pub struct Explanation {
     /// world units along the camera's right and up from the lens centre
     /// (within the aperture); `None` for a pinhole.
     pub lens_point: Option<[f64; 2]>,
+    /// With an open shutter on a moving scene, the instant the sample sees,
+    /// in frames after the frame's start; `None` otherwise.
+    pub time: Option<f64>,
     /// The camera ray and its subtree.
     pub tree: RayNode,
 }
@@ -166,7 +173,7 @@ pub fn explain(
         root: None,
     };
     let mut stats = RayStats::default();
-    let (pixel, radiance, lens) = render_pixel_recorded(
+    let (pixel, radiance, lens, time) = render_pixel_recorded(
         scene,
         &tracer,
         settings,
@@ -183,6 +190,7 @@ pub fn explain(
         radiance: radiance.to_array(),
         pixel_radiance: pixel.to_array(),
         lens_point: lens.map(|p| p.to_array()),
+        time,
         tree: recorder.root.unwrap_or_default(),
     })
 }
@@ -195,7 +203,7 @@ struct TreeRecorder<'s> {
 }
 
 /// What the light terms need at the current hit.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Default)]
 struct Shading {
     n: DVec3,
     view: DVec3,
@@ -204,6 +212,27 @@ struct Shading {
     /// Running sums per light: (vis, diffuse, specular, feelers, spot
     /// cone share).
     sums: Option<(DVec3, DVec3, DVec3, usize, f64)>,
+    /// The current light's first feelers, and how many more it sent.
+    points: Vec<FeelerPoint>,
+    points_left_out: usize,
+}
+
+/// Feelers listed one by one per light and hit; the rest are counted.
+const FEELER_POINTS: usize = 64;
+
+/// One shadow feeler: where it went and what came back.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct FeelerPoint {
+    /// Unit direction from the hit towards the light's sample.
+    pub direction: [f64; 3],
+    /// The sample's point on the light (on a sphere light's surface, on an
+    /// area light); `None` for a directional light.
+    pub on_light: Option<[f64; 3]>,
+    /// Its weight: the distance falloff (an area light's A·cos θ′/d²,
+    /// a spot's cone share included).
+    pub weight: f64,
+    /// What got through, per channel (0: blocked).
+    pub visibility: [f64; 3],
 }
 
 impl Recorder for TreeRecorder<'_> {
@@ -269,11 +298,29 @@ impl Recorder for TreeRecorder<'_> {
         }
     }
 
-    fn feeler(&mut self, light: usize, direction: DVec3, falloff: f64, visibility: DVec3) {
+    fn feeler(&mut self, light: usize, sample: &LightSample, visibility: DVec3) {
+        let (direction, falloff) = (sample.direction, sample.falloff);
         let scene = self.scene;
-        let Some((_, s)) = self.stack.last_mut() else {
+        let Some((node, s)) = self.stack.last_mut() else {
             return;
         };
+        if s.points.len() < FEELER_POINTS {
+            let point = node
+                .hit
+                .as_ref()
+                .map_or(DVec3::ZERO, |h| DVec3::from(h.point));
+            s.points.push(FeelerPoint {
+                direction: direction.to_array(),
+                on_light: sample
+                    .distance
+                    .is_finite()
+                    .then(|| (point + direction * sample.distance).to_array()),
+                weight: falloff,
+                visibility: visibility.to_array(),
+            });
+        } else {
+            s.points_left_out += 1;
+        }
         let material = &scene.materials[s.material as usize];
         let (diffuse, specular) = material.phong_terms(s.od, s.n, direction, s.view);
         let sums = s
@@ -315,6 +362,8 @@ impl Recorder for TreeRecorder<'_> {
             contribution: contribution.to_array(),
             spot_cone: matches!(scene.lights[light].shape, LightShape::Spot { .. })
                 .then(|| cone / feelers.max(1) as f64),
+            feeler_points: std::mem::take(&mut s.points),
+            feeler_points_left_out: std::mem::take(&mut s.points_left_out),
         });
     }
 

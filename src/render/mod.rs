@@ -270,8 +270,9 @@ pub fn render_row(
 
 /// [`render_pixel`], with sample `recorded` (every sample: `None`) traced
 /// through `recorder`; returns the pixel, the last recorded sample's
-/// radiance and its point on the lens (see [`camera_ray`]; `None` for a
-/// pinhole).
+/// radiance, its point on the lens (see [`camera_ray`]; `None` for a
+/// pinhole) and the instant it saw (frames after the frame's start; `None`
+/// without an open shutter on a moving scene).
 #[allow(clippy::too_many_arguments)]
 pub fn render_pixel_recorded<R: Recorder>(
     scene: &Scene,
@@ -282,7 +283,7 @@ pub fn render_pixel_recorded<R: Recorder>(
     stats: &mut RayStats,
     recorded: Option<usize>,
     recorder: &mut R,
-) -> (DVec3, DVec3, Option<glam::DVec2>) {
+) -> (DVec3, DVec3, Option<glam::DVec2>, Option<f64>) {
     let mut rng = PixelRng::new(frame_seed(settings.seed, settings.frame), x, y);
     let strata = Strata::new(settings.spp as usize);
     let spp = strata.len();
@@ -291,8 +292,12 @@ pub fn render_pixel_recorded<R: Recorder>(
     let mut sum = DVec3::ZERO;
     let mut sample_radiance = DVec3::ZERO;
     let mut sample_lens = None;
+    let mut sample_time = None;
     for s in 0..spp {
         let instant = instant_of(scene, s, spp, time_key, &mut rng);
+        let time = instant
+            .zip(settings.shutter)
+            .map(|(k, sh)| sh.instant(k as u32));
         let (scene, tracer) = match instant {
             Some(k) => (&scene.motion[k], tracer.for_scene(&scene.motion[k])),
             None => (scene, tracer.for_scene(scene)),
@@ -300,14 +305,14 @@ pub fn render_pixel_recorded<R: Recorder>(
         let (ray, lens) = camera_ray(scene, settings, &strata, s, x, y, lens_key, &mut rng);
         let radiance = if recorded.is_none_or(|k| k == s) {
             let r = tracer.radiance_recorded(&ray, &mut rng, stats, recorder);
-            (sample_radiance, sample_lens) = (r, lens);
+            (sample_radiance, sample_lens, sample_time) = (r, lens, time);
             r
         } else {
             tracer.radiance(&ray, &mut rng, stats)
         };
         sum += radiance;
     }
-    (sum / spp as f64, sample_radiance, sample_lens)
+    (sum / spp as f64, sample_radiance, sample_lens, sample_time)
 }
 
 /// The key of the pixel's pairing of film strata with lens strata, drawn

@@ -145,11 +145,11 @@ pub trait Recorder {
     fn emission(&mut self, term: DVec3) {
         let _ = term;
     }
-    /// One sample of light `light` towards unit `direction`, with its
-    /// falloff, and the visibility its shadow feeler found (not called for
-    /// samples behind the surface, which need no feeler).
-    fn feeler(&mut self, light: usize, direction: DVec3, falloff: f64, visibility: DVec3) {
-        let _ = (light, direction, falloff, visibility);
+    /// One sample of light `light` (its unit direction, the feeler's
+    /// length, the falloff) and the visibility its shadow feeler found (not
+    /// called for samples that need no feeler).
+    fn feeler(&mut self, light: usize, sample: &LightSample, visibility: DVec3) {
+        let _ = (light, sample, visibility);
     }
     /// Light `light`'s whole contribution, over `samples` samples.
     fn light(&mut self, light: usize, samples: usize, contribution: DVec3) {
@@ -596,7 +596,7 @@ impl<'a> Whitted<'a> {
                     }
                     _ => self.visibility(&origins, sample, candidates.as_mut(), stats),
                 };
-                rec.feeler(index, sample.direction, sample.falloff, visibility);
+                rec.feeler(index, sample, visibility);
                 visible[k] = visibility;
             }
             // The local model of the feelers that got through, the whole
@@ -647,7 +647,7 @@ impl<'a> Whitted<'a> {
         if let Some(sample) = sample.filter(|_| !behind) {
             let origins = SpawnOrigins::new(point.hit.point, point.hit.normal);
             let visibility = self.visibility(&origins, sample, None, stats);
-            rec.feeler(index, sample.direction, sample.falloff, visibility);
+            rec.feeler(index, sample, visibility);
             if visibility != DVec3::ZERO {
                 let shade = point
                     .material

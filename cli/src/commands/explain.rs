@@ -127,6 +127,11 @@ fn describe(e: &Explanation) -> String {
             String::new()
         }
     );
+    if let Some(time) = e.time {
+        out.push_str(&format!(
+            "at the shutter's instant {time:.6} frames after the frame's start\n"
+        ));
+    }
     if let Some([right, up]) = e.lens_point {
         out.push_str(&format!(
             "through the lens at ({right:.6}, {up:.6}) (right, up from its centre)\n"

@@ -327,6 +327,7 @@ async function explain(x, y) {
   $("inspector").innerHTML =
     `<p>Pixel (${x}, ${y}), sample ${e.sample} of ${e.samples}: radiance <b id="inspect-radiance">${fmt(e.radiance)}</b></p>` +
     (e.lens_point ? `<p>Through the lens at ${fmt(e.lens_point)} (right, up from its centre)</p>` : "") +
+    (e.time != null ? `<p>At the shutter's instant ${e.time.toFixed(4)} frames after the frame's start</p>` : "") +
     nodeHtml(e.tree);
   // The sample's rays over the picture.
   rctx.clearRect(0, 0, rays.width, rays.height);
