@@ -173,14 +173,26 @@ impl Scene {
     fn build(py: Python<'_>, source: Source, options: LoadOptions) -> PyResult<Scene> {
         if let Source::Dict { dict, base_dir } = &source {
             let assembled = dict_scene(py, dict.bind(py))?;
-            return match py.detach(|| assembled.finish(base_dir, &options)) {
-                Ok(scene) => Ok(Scene {
-                    scene: Arc::new(scene),
-                    source,
-                    options,
-                }),
-                Err(problems) => Err(dict_error(py, problems)),
-            };
+            let mut scene = py
+                .detach(|| assembled.finish_at(base_dir, &options, 0.0))
+                .map_err(|problems| dict_error(py, problems))?;
+            // An open shutter on keyed values: the dict built again at
+            // each instant (walked with the GIL, built without it).
+            if let Some(shutter) = scene.settings.shutter.filter(|_| scene.animated) {
+                for k in 0..shutter.samples {
+                    let assembled = dict_scene(py, dict.bind(py))?;
+                    let offset = shutter.instant(k);
+                    let instant = py
+                        .detach(|| assembled.finish_at(base_dir, &options, offset))
+                        .map_err(|problems| dict_error(py, problems))?;
+                    scene.motion.push(instant);
+                }
+            }
+            return Ok(Scene {
+                scene: Arc::new(scene),
+                source,
+                options,
+            });
         }
         let loaded = py.detach(|| match &source {
             Source::File(path) => prism::Scene::load_with(path, &options),

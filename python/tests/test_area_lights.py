@@ -1,6 +1,7 @@
 """Distributed ray tracing (issue 28) through Scene.from_dict: a rectangle
 and a disk light, one- and two-sided, a rough (glossy) material, a thin
-lens and adaptive anti-aliasing give the picture their TOML text gives,
+lens, adaptive anti-aliasing and an open shutter (motion blur) give the
+picture their TOML text gives,
 pixel for pixel; a bad key raises SceneError naming it."""
 
 import numpy as np
@@ -43,7 +44,9 @@ def toml_value(v):
 
 def toml_of(d):
     out = []
-    for section in ["render", "camera"]:
+    for section in ["render", "animation", "camera"]:
+        if section not in d:
+            continue
         out.append(f"[{section}]")
         out.extend(f"{k} = {toml_value(v)}" for k, v in d[section].items())
     for section in ["lights", "materials"]:
@@ -92,3 +95,21 @@ def test_glossy_lens_and_adaptive_from_a_dict_are_their_toml():
     # The same picture on one thread as on all.
     c = prism.Scene.from_dict(d).render(progress=False, threads=1)
     assert a.tobytes() == c.tobytes()
+
+
+def test_an_open_shutter_from_a_dict_is_its_toml():
+    d = dict(FLOOR, lights={"area": LIGHTS["disk"]})
+    d["render"] = dict(d["render"], spp=4, shutter=[0, 1], shutter_samples=4)
+    d["animation"] = {"frames": 1}
+    moving = {"type": "sphere", "material": "white", "radius": 0.3,
+              "transform": [{"translate": [{"frame": 0, "value": [-1, 0.3, 0.5]},
+                                           {"frame": 1, "value": [1, 0.3, 0.5]}]}]}
+    d["objects"] = d["objects"] + [moving]
+    a = prism.Scene.from_dict(d).render(progress=False)
+    b = prism.loads(toml_of(d)).render(progress=False)
+    assert a.tobytes() == b.tobytes(), toml_of(d)
+    # The streak differs from the ball at rest at either end.
+    still = dict(d, render=dict(d["render"]))
+    del still["render"]["shutter"], still["render"]["shutter_samples"]
+    c = prism.Scene.from_dict(still).render(progress=False)
+    assert a.tobytes() != c.tobytes()

@@ -341,7 +341,7 @@ impl Recorder for TreeRecorder<'_> {
         sums.3 += 1;
     }
 
-    fn light(&mut self, light: usize, samples: usize, contribution: DVec3) {
+    fn light(&mut self, light: usize, radiance: DVec3, samples: usize, contribution: DVec3) {
         let scene = self.scene;
         let Some((node, s)) = self.stack.last_mut() else {
             return;
@@ -350,7 +350,6 @@ impl Recorder for TreeRecorder<'_> {
             s.sums
                 .take()
                 .unwrap_or((DVec3::ZERO, DVec3::ZERO, DVec3::ZERO, 0, 0.0));
-        let radiance = scene.lights[light].radiance;
         let n = samples.max(1) as f64;
         node.lights.push(LightTerms {
             light: scene.names.lights.get(light).cloned().unwrap_or_default(),

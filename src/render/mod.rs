@@ -323,7 +323,9 @@ pub fn render_pixel_recorded<R: Recorder>(
 /// film × lens, a bias; a shuffle per pixel pairs them at random, as
 /// pbrt's stratified sampler shuffles each dimension.
 fn lens_key(scene: &Scene, rng: &mut PixelRng) -> u32 {
-    if scene.camera.lens.is_some() {
+    // A keyed aperture may open during the shutter: any instant's lens.
+    let lens = |s: &Scene| s.camera.lens.is_some();
+    if lens(scene) || scene.motion.iter().any(lens) {
         (rng.uniform() * 4_294_967_296.0) as u32
     } else {
         0

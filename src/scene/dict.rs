@@ -234,8 +234,32 @@ impl DictScene {
     }
 
     /// Checks and builds the scene, with relative paths below `base_dir`;
-    /// every problem found, by key path, if it is not valid.
+    /// every problem found, by key path, if it is not valid. An open
+    /// shutter on keyed values is refused here: its instants are the dict
+    /// walked again, which [`finish_at`](Self::finish_at) builds one by one
+    /// (the Python binding does).
     pub fn finish(self, base_dir: &Path, options: &LoadOptions) -> Result<Scene, Vec<Problem>> {
+        let scene = self.finish_at(base_dir, options, 0.0)?;
+        if scene.settings.shutter.is_some() && scene.animated {
+            return Err(vec![Problem {
+                key_path: "render.shutter".into(),
+                message: "an open shutter on keyed values (motion blur) needs its instants \
+                          built too: use DictScene::finish_at for each, or the scene as TOML text"
+                    .into(),
+            }]);
+        }
+        Ok(scene)
+    }
+
+    /// [`finish`](Self::finish) with keyed values `offset` frames after the
+    /// frame `options` names (an instant of the shutter, see
+    /// [`Scene::motion`]); no refusal of an open shutter.
+    pub fn finish_at(
+        self,
+        base_dir: &Path,
+        options: &LoadOptions,
+        offset: f64,
+    ) -> Result<Scene, Vec<Problem>> {
         let DictScene {
             file,
             nodes,
@@ -250,7 +274,7 @@ impl DictScene {
         for (node, message) in problems {
             diags.error(node..node + 1, message);
         }
-        let checked = build::check(file, base_dir, options, &mut diags);
+        let checked = build::check_at(file, base_dir, options, offset, &mut diags);
         match checked {
             Some(mut checked) if diags.is_empty() => {
                 let text: String = digest
@@ -260,17 +284,6 @@ impl DictScene {
                     .collect();
                 let inventory = checked.inventory_mut();
                 inventory.content_hash = super::content_hash(&text, &inventory.files_read);
-                if checked.shutter_open() {
-                    // Each instant is the scene built again from its text;
-                    // a dict is walked once.
-                    return Err(vec![Problem {
-                        key_path: "render.shutter".into(),
-                        message:
-                            "an open shutter on keyed values (motion blur) needs the scene as \
-                                  TOML text (prism.loads), which is built again at each instant"
-                                .into(),
-                    }]);
-                }
                 Ok(checked.finish())
             }
             _ => Err(diags

@@ -59,6 +59,10 @@ pub fn glossy_reflection(incident: DVec3, n: DVec3, m: DVec3) -> DVec3 {
 /// `None` when the microfacet reflects it all (total internal reflection).
 #[inline]
 pub fn glossy_refraction(incident: DVec3, n: DVec3, m: DVec3, eta: f64) -> Option<DVec3> {
+    // A facet drawn facing away from the ray (possible at grazing angles:
+    // normals are drawn by D(m)·cos θm, not as seen from the ray) is met
+    // from its other side; Snell's law wants the normal facing the ray.
+    let m = if incident.dot(m) > 0.0 { -m } else { m };
     let t = refract(incident, m, eta)?.normalize();
     Some(fold(t, n, -1.0))
 }

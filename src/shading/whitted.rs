@@ -151,9 +151,11 @@ pub trait Recorder {
     fn feeler(&mut self, light: usize, sample: &LightSample, visibility: DVec3) {
         let _ = (light, sample, visibility);
     }
-    /// Light `light`'s whole contribution, over `samples` samples.
-    fn light(&mut self, light: usize, samples: usize, contribution: DVec3) {
-        let _ = (light, samples, contribution);
+    /// Light `light` (of colour × intensity `radiance`, as the scene
+    /// being traced has it: an instant's under an open shutter): its whole
+    /// contribution, over `samples` samples.
+    fn light(&mut self, light: usize, radiance: DVec3, samples: usize, contribution: DVec3) {
+        let _ = (light, radiance, samples, contribution);
     }
     /// The weights of the secondary rays at this hit, the indices on the
     /// incoming and the far side, and whether total internal reflection
@@ -619,7 +621,7 @@ impl<'a> Whitted<'a> {
             }
         }
         let contribution = light.radiance * sum / count as f64;
-        rec.light(index, count, contribution);
+        rec.light(index, light.radiance, count, contribution);
         contribution
     }
 
@@ -657,7 +659,7 @@ impl<'a> Whitted<'a> {
         }
         // `direct` divides by the count, here 1: exact, so left out.
         let contribution = light.radiance * sum;
-        rec.light(index, 1, contribution);
+        rec.light(index, light.radiance, 1, contribution);
         contribution
     }
 
