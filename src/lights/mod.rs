@@ -61,26 +61,72 @@ pub enum LightShape {
         /// Shadow feelers per shading point.
         samples: u32,
     },
-    /// A flat uniform Lambertian emitter: a rectangle (a parallelogram
-    /// when its edges are not perpendicular) or a disk (an ellipse when
-    /// its axes differ), `center + x·axis_u + y·axis_v` for (x, y) in the
-    /// square [−1, 1]² or the unit disk.
+    /// A flat uniform Lambertian emitter (see [`AreaLight`]), sampled
+    /// with `samples` feelers per shading point.
     Area {
-        /// Centre.
-        center: DVec3,
-        /// Half the first edge (rectangle) or the first radius (disk).
-        axis_u: DVec3,
-        /// Half the second edge, or the second radius.
-        axis_v: DVec3,
-        /// Unit normal of the emitting side, along axis_u × axis_v.
-        normal: DVec3,
-        /// The outline.
-        outline: AreaOutline,
-        /// Whether both sides emit (else only the side `normal` faces).
-        two_sided: bool,
+        /// Its geometry.
+        emitter: AreaLight,
         /// Shadow feelers per shading point.
         samples: u32,
     },
+}
+
+/// The geometry of an area light: a rectangle (a parallelogram when its
+/// edges are not perpendicular) or a disk (an ellipse when its axes
+/// differ), `center + x·axis_u + y·axis_v` for (x, y) in the square
+/// [−1, 1]² or the unit disk.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AreaLight {
+    /// Centre.
+    pub center: DVec3,
+    /// Half the first edge (rectangle) or the first radius (disk).
+    pub axis_u: DVec3,
+    /// Half the second edge, or the second radius.
+    pub axis_v: DVec3,
+    /// Unit normal of the emitting side, along axis_u × axis_v.
+    pub normal: DVec3,
+    /// The outline.
+    pub outline: AreaOutline,
+    /// Whether both sides emit (else only the side `normal` faces).
+    pub two_sided: bool,
+}
+
+impl AreaLight {
+    /// The area: |axis_u × axis_v| times 4 (rectangle) or π (disk).
+    pub fn area(&self) -> f64 {
+        let scale = match self.outline {
+            AreaOutline::Rectangle => 4.0,
+            AreaOutline::Disk => std::f64::consts::PI,
+        };
+        scale * self.axis_u.cross(self.axis_v).length()
+    }
+
+    /// The point at (x, y) of the square [−1, 1]² (rectangle) or the unit
+    /// disk (through the concentric map), from a point `u` of the unit square.
+    #[inline]
+    pub fn point(&self, u: DVec2) -> DVec3 {
+        let p = match self.outline {
+            AreaOutline::Rectangle => 2.0 * u - DVec2::ONE,
+            AreaOutline::Disk => concentric_disk(u),
+        };
+        self.center + p.x * self.axis_u + p.y * self.axis_v
+    }
+
+    /// The radius of a ball about the centre that holds the whole light:
+    /// the farther corner of a parallelogram; for a disk (an ellipse, its
+    /// axes possibly not perpendicular) the farthest point of the outline,
+    /// |u·cos t + v·sin t| at most |u| + |v|, and the longer axis when they
+    /// are perpendicular.
+    pub fn bounding_radius(&self) -> f64 {
+        let (u, v) = (self.axis_u, self.axis_v);
+        match self.outline {
+            AreaOutline::Rectangle => (u + v).length().max((u - v).length()),
+            AreaOutline::Disk if u.dot(v).abs() <= 1e-12 * u.length() * v.length() => {
+                u.length().max(v.length())
+            }
+            AreaOutline::Disk => u.length() + v.length(),
+        }
+    }
 }
 
 /// The outline of an area light.
@@ -100,14 +146,10 @@ impl LightShape {
             LightShape::Directional { .. } => "directional",
             LightShape::Spot { .. } => "spot",
             LightShape::Sphere { .. } => "sphere",
-            LightShape::Area {
-                outline: AreaOutline::Rectangle,
-                ..
-            } => "rectangle",
-            LightShape::Area {
-                outline: AreaOutline::Disk,
-                ..
-            } => "disk",
+            LightShape::Area { emitter, .. } => match emitter.outline {
+                AreaOutline::Rectangle => "rectangle",
+                AreaOutline::Disk => "disk",
+            },
         }
     }
 
@@ -119,41 +161,12 @@ impl LightShape {
         }
     }
 
-    /// An area light's area: |axis_u × axis_v| times 4 (rectangle) or π
-    /// (disk); 0 for the other shapes.
+    /// An area light's area; 0 for the other shapes.
     pub fn area(&self) -> f64 {
-        match *self {
-            LightShape::Area {
-                axis_u,
-                axis_v,
-                outline,
-                ..
-            } => {
-                let scale = match outline {
-                    AreaOutline::Rectangle => 4.0,
-                    AreaOutline::Disk => std::f64::consts::PI,
-                };
-                scale * axis_u.cross(axis_v).length()
-            }
+        match self {
+            LightShape::Area { emitter, .. } => emitter.area(),
             _ => 0.0,
         }
-    }
-
-    /// The area light's point at (x, y) of the square [−1, 1]² (rectangle)
-    /// or the unit disk, from a point `u` of the unit square.
-    #[inline]
-    fn area_point(
-        center: DVec3,
-        axis_u: DVec3,
-        axis_v: DVec3,
-        outline: AreaOutline,
-        u: DVec2,
-    ) -> DVec3 {
-        let p = match outline {
-            AreaOutline::Rectangle => 2.0 * u - DVec2::ONE,
-            AreaOutline::Disk => concentric_disk(u),
-        };
-        center + p.x * axis_u + p.y * axis_v
     }
 }
 
@@ -220,20 +233,9 @@ pub enum LightSampler {
     Area {
         /// The shading point.
         point: DVec3,
-        /// The light's centre, axes, normal, outline and sidedness, as
-        /// in [`LightShape::Area`].
-        center: DVec3,
-        /// As in [`LightShape::Area`].
-        axis_u: DVec3,
-        /// As in [`LightShape::Area`].
-        axis_v: DVec3,
-        /// As in [`LightShape::Area`].
-        normal: DVec3,
-        /// As in [`LightShape::Area`].
-        outline: AreaOutline,
-        /// As in [`LightShape::Area`].
-        two_sided: bool,
-        /// The light's area.
+        /// The light.
+        emitter: AreaLight,
+        /// Its area.
         area: f64,
         /// One stratum of the square per sample.
         strata: Strata,
@@ -309,23 +311,10 @@ impl Light {
                     strata: Strata::new(samples as usize),
                 }
             }
-            LightShape::Area {
-                center,
-                axis_u,
-                axis_v,
-                normal,
-                outline,
-                two_sided,
-                samples,
-            } => LightSampler::Area {
+            LightShape::Area { emitter, samples } => LightSampler::Area {
                 point,
-                center,
-                axis_u,
-                axis_v,
-                normal,
-                outline,
-                two_sided,
-                area: self.shape.area(),
+                emitter,
+                area: emitter.area(),
                 strata: Strata::new(samples as usize),
             },
         }
@@ -375,23 +364,8 @@ impl LightSampler {
             LightSampler::Cone {
                 to_center, radius, ..
             } => Some((to_center, radius)),
-            LightSampler::Area {
-                point,
-                center,
-                axis_u,
-                axis_v,
-                outline,
-                ..
-            } => {
-                let radius = match outline {
-                    // The farther corner.
-                    AreaOutline::Rectangle => {
-                        (axis_u + axis_v).length().max((axis_u - axis_v).length())
-                    }
-                    // The longer axis (an ellipse lies within its circle).
-                    AreaOutline::Disk => axis_u.length().max(axis_v.length()),
-                };
-                Some((center - point, radius))
+            LightSampler::Area { point, emitter, .. } => {
+                Some((emitter.center - point, emitter.bounding_radius()))
             }
         }
     }
@@ -430,25 +404,14 @@ impl LightSampler {
     fn area_sample(&self, index: usize, jitter: DVec2) -> LightSample {
         let LightSampler::Area {
             point,
-            center,
-            axis_u,
-            axis_v,
-            normal,
-            outline,
-            two_sided,
+            emitter,
             area,
             strata,
         } = *self
         else {
             unreachable!("area_sample of an area light only");
         };
-        let on_light = LightShape::area_point(
-            center,
-            axis_u,
-            axis_v,
-            outline,
-            strata.point_at(index, jitter),
-        );
+        let on_light = emitter.point(strata.point_at(index, jitter));
         let to_light = on_light - point;
         let distance_squared = to_light.length_squared();
         let distance = distance_squared.sqrt();
@@ -462,7 +425,13 @@ impl LightSampler {
         LightSample {
             direction,
             distance,
-            falloff: area_weight(area, normal, direction, distance_squared, two_sided),
+            falloff: area_weight(
+                area,
+                emitter.normal,
+                direction,
+                distance_squared,
+                emitter.two_sided,
+            ),
         }
     }
 

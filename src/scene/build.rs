@@ -79,7 +79,7 @@ use crate::geometry::{
     Cone, Csg, CsgChild, CsgOp, Cuboid, Disc, Ellipsoid, Mesh, MeshInstance, Plane, Polygon,
     Sphere, Torus,
 };
-use crate::lights::{AreaOutline, Light, LightShape};
+use crate::lights::{AreaLight, AreaOutline, Light, LightShape};
 use crate::limits;
 use crate::math::Transform;
 use crate::settings::RenderSettings;
@@ -996,12 +996,14 @@ impl Check<'_, '_> {
                     return None;
                 };
                 LightShape::Area {
-                    center,
-                    axis_u,
-                    axis_v,
-                    normal,
-                    outline,
-                    two_sided,
+                    emitter: AreaLight {
+                        center,
+                        axis_u,
+                        axis_v,
+                        normal,
+                        outline,
+                        two_sided,
+                    },
                     samples,
                 }
             }
@@ -1791,24 +1793,17 @@ impl Check<'_, '_> {
                     radius,
                     samples,
                 },
-                LightShape::Area {
-                    center,
-                    axis_u,
-                    axis_v,
-                    outline,
-                    two_sided,
-                    samples,
-                    ..
-                } => {
+                LightShape::Area { emitter, samples } => {
                     let along = |v: DVec3| transform.map_or(v, |t| t.to_world.transform_vector3(v));
-                    let (axis_u, axis_v) = (along(axis_u), along(axis_v));
+                    let (axis_u, axis_v) = (along(emitter.axis_u), along(emitter.axis_v));
                     LightShape::Area {
-                        center: point(center),
-                        axis_u,
-                        axis_v,
-                        normal: axis_u.cross(axis_v).normalize_or_zero(),
-                        outline,
-                        two_sided,
+                        emitter: AreaLight {
+                            center: point(emitter.center),
+                            axis_u,
+                            axis_v,
+                            normal: axis_u.cross(axis_v).normalize_or_zero(),
+                            ..emitter
+                        },
                         samples,
                     }
                 }
