@@ -125,6 +125,7 @@ fn check(path: &Path, load: &LoadArgs) -> ExitCode {
                 say_err!("warning: {w}");
             }
             let c = scene.census();
+            let instants_bytes: u64 = scene.motion.iter().map(|s| s.census().memory_bytes).sum();
             let inv = &scene.inventory;
             // A reader that stops early (`| head`) is not an error.
             let _ = writeln!(
@@ -135,7 +136,7 @@ fn check(path: &Path, load: &LoadArgs) -> ExitCode {
                  meshes: {} stored ({} triangles), {} triangles placed\n\
                  textures: {} ({:.1} MiB)\n\
                  estimated memory: {:.1} MiB\n\
-                 lights: {}\n\
+                 lights: {}{}\n\
                  load {:.2} s, build {:.2} s",
                 prism::text::Shown(path.display()),
                 scene.aggregate.primitives().len(),
@@ -155,8 +156,16 @@ fn check(path: &Path, load: &LoadArgs) -> ExitCode {
                 c.placed_triangles,
                 inv.textures,
                 inv.texture_bytes as f64 / (1 << 20) as f64,
-                c.memory_bytes as f64 / (1 << 20) as f64,
+                (c.memory_bytes + instants_bytes) as f64 / (1 << 20) as f64,
                 light_summary(&scene.lights),
+                if scene.motion.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        "\nshutter: {} instants, each a scene built apart (counted in the memory)",
+                        scene.motion.len()
+                    )
+                },
                 total.saturating_sub(inv.build_time).as_secs_f64(),
                 inv.build_time.as_secs_f64(),
             );
