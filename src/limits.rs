@@ -21,6 +21,9 @@ pub const MAX_THREADS: u32 = 1024;
 pub const MAX_ADAPTIVE_DEPTH: u32 = 8;
 /// Most instants a shutter is sampled at (each is a scene built apart).
 pub const MAX_SHUTTER_SAMPLES: u32 = 256;
+/// Most memory an open shutter's instants may take together (each is a
+/// copy of the scene: a million keyed spheres at 256 instants would not fit).
+pub const MAX_SHUTTER_BYTES: u64 = 4 << 30;
 /// Most shadow feelers per sphere light and shading point.
 pub const MAX_LIGHT_SAMPLES: u32 = 65_536;
 
@@ -61,12 +64,13 @@ pub const MAX_CSG_DEPTH: usize = 64;
 pub fn describe() -> String {
     format!(
         "Limits: image sides 1..={MAX_IMAGE_SIDE} and at most {MAX_PIXELS} pixels; spp 1..={MAX_SPP}; \
-         max_depth 1..={MAX_DEPTH}; adaptive depth 0..={MAX_ADAPTIVE_DEPTH}; threads 1..={MAX_THREADS}; animation frames 1..={MAX_FRAMES}; sphere-light samples 1..={MAX_LIGHT_SAMPLES}; coordinates within \
+         max_depth 1..={MAX_DEPTH}; adaptive depth 0..={MAX_ADAPTIVE_DEPTH}; shutter_samples 1..={MAX_SHUTTER_SAMPLES} (instants at most {} GiB in all); threads 1..={MAX_THREADS}; animation frames 1..={MAX_FRAMES}; sphere-light samples 1..={MAX_LIGHT_SAMPLES}; coordinates within \
          ±{MAX_COORDINATE:e} and lengths, radii and scale factors in [{MIN_LENGTH:e}, {MAX_COORDINATE:e}] \
          (after transforms); colours, intensities and coefficients at most {MAX_VALUE:e}; \
          {MAX_MODEL_PLACEMENTS} placements per model file; CSG nested {MAX_CSG_DEPTH} deep; {} MiB of scene text per [[objects]] \
          table and outside them; {} MiB per scene file and {} MiB per file it reads; {DEFAULT_TEXTURE_MIB} MiB of textures unless --texture-memory \
          says otherwise.",
+        MAX_SHUTTER_BYTES >> 30,
         MAX_TABLE_TEXT >> 20,
         MAX_SCENE_FILE_BYTES >> 20,
         MAX_FILE_BYTES >> 20,

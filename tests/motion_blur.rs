@@ -186,3 +186,36 @@ fn explain_names_the_instant_a_sample_sees() {
         None
     );
 }
+
+#[test]
+fn too_many_instants_of_a_big_scene_are_refused_before_they_are_built() {
+    // 200,000 spheres (about 20 MiB) at 256 instants would take 5 GiB:
+    // refused at the `shutter` key, with what to lower.
+    let mut text = String::new();
+    let head = "[render]\nwidth = 8\nheight = 8\nshutter = [0, 1]\nshutter_samples = 256\n[animation]\nframes = 1\n\
+                [camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\n[materials.m]\n";
+    text.push_str(head);
+    for i in 0..200_000 {
+        text.push_str(&format!(
+            "[[objects]]\ntype = \"sphere\"\nmaterial = \"m\"\ncenter = [{}, {}, {}]\nradius = 0.1\n",
+            i % 100,
+            i / 100 % 100,
+            i / 10_000
+        ));
+    }
+    text.push_str(
+        "[[objects]]\ntype = \"sphere\"\nmaterial = \"m\"\nradius = 0.1\n\
+         transform = [{ translate = [{ frame = 0, value = [0, 0, 0] }, { frame = 1, value = [1, 0, 0] }] }]\n",
+    );
+    let Err(e) = Scene::from_toml(&text, "big.toml") else {
+        panic!("256 instants of 20 MiB were built");
+    };
+    let e = e.to_string();
+    assert!(
+        e.contains("big.toml:4:1") && e.contains("lower `shutter_samples`"),
+        "{e}"
+    );
+    // At 2 instants it fits.
+    let fits = text.replace("shutter_samples = 256", "shutter_samples = 2");
+    assert!(Scene::from_toml(&fits, "big.toml").is_ok_and(|s| s.motion.len() == 2));
+}

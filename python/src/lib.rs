@@ -179,6 +179,9 @@ impl Scene {
             // An open shutter on keyed values: the dict built again at
             // each instant (walked with the GIL, built without it).
             if let Some(shutter) = scene.settings.shutter.filter(|_| scene.animated) {
+                scene
+                    .motion_fits()
+                    .map_err(|e| PyValueError::new_err(for_python(&e)))?;
                 for k in 0..shutter.samples {
                     let assembled = dict_scene(py, dict.bind(py))?;
                     let offset = shutter.instant(k);

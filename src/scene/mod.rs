@@ -228,15 +228,19 @@ impl Scene {
         options: &LoadOptions,
     ) -> Result<Scene, SceneError> {
         let scene = check(source, origin, base_dir, options)?.finish();
-        scene.with_motion(|offset| {
+        scene.with_motion(origin, shutter_key(source), |offset| {
             check_at(source, origin, base_dir, options, offset).map(build::Checked::finish)
         })
     }
 
     /// The scene with its shutter's instants built (see [`motion`](Self::motion))
     /// by `build_at(offset)`, when it has a shutter and keys.
+    /// `origin` and `at` (line, column of the `shutter` key) place the
+    /// refusal of too many instants.
     fn with_motion(
         mut self,
+        origin: &str,
+        at: (usize, usize),
         build_at: impl Fn(f64) -> Result<Scene, SceneError>,
     ) -> Result<Scene, SceneError> {
         let Some(shutter) = self.settings.shutter else {
@@ -245,10 +249,41 @@ impl Scene {
         if !self.animated {
             return Ok(self);
         }
+        self.motion_fits().map_err(|message| SceneError::Invalid {
+            origin: origin.to_string(),
+            diagnostics: vec![Diagnostic {
+                line: at.0,
+                column: at.1,
+                message,
+            }],
+        })?;
         self.motion = (0..shutter.samples)
             .map(|k| build_at(shutter.instant(k)))
             .collect::<Result<_, _>>()?;
         Ok(self)
+    }
+
+    /// Whether the instants of this scene's open shutter fit in
+    /// [`MAX_SHUTTER_BYTES`](crate::limits::MAX_SHUTTER_BYTES), each
+    /// counted as a copy of the scene; the message says what to lower.
+    pub fn motion_fits(&self) -> Result<(), String> {
+        let Some(shutter) = self.settings.shutter else {
+            return Ok(());
+        };
+        let each = self.census().memory_bytes.max(1);
+        let total = each.saturating_mul(u64::from(shutter.samples));
+        if total > crate::limits::MAX_SHUTTER_BYTES {
+            return Err(format!(
+                "`shutter_samples` = {} builds the scene {} times, about {:.1} GiB of {:.1} MiB each, \
+                 more than the {} GiB an open shutter may take; lower `shutter_samples`",
+                shutter.samples,
+                shutter.samples,
+                total as f64 / (1u64 << 30) as f64,
+                each as f64 / (1u64 << 20) as f64,
+                crate::limits::MAX_SHUTTER_BYTES >> 30
+            ));
+        }
+        Ok(())
     }
 
     /// Reads and builds the scene file at `path`.
@@ -306,7 +341,8 @@ impl Scene {
                     drop(source);
                     return Ok(checked.finish());
                 }
-                checked.finish().with_motion(|offset| {
+                let at = shutter_key(&source);
+                checked.finish().with_motion(&origin, at, |offset| {
                     check_at(&source, &origin, base_dir, options, offset)
                         .map(build::Checked::finish)
                 })
@@ -406,6 +442,17 @@ fn check(
     options: &LoadOptions,
 ) -> Result<build::Checked, SceneError> {
     check_at(source, origin, base_dir, options, 0.0)
+}
+
+/// Line and column of the `shutter` key (1:1 if it cannot be found): where
+/// a refusal of its instants points.
+fn shutter_key(source: &str) -> (usize, usize) {
+    let offset = source
+        .match_indices("shutter")
+        .map(|(i, _)| i)
+        .find(|&i| source[..i].ends_with('\n') || i == 0)
+        .unwrap_or(0);
+    error::line_column(source, offset)
 }
 
 /// [`check`] with keyed values `offset` frames after the frame asked for.
