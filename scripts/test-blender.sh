@@ -41,7 +41,7 @@ blend() { blender --background --python-exit-code 1 "$@" >>"$WORK/blender.log" 2
 start=$(date +%s)
 blender --version | head -1
 blend --factory-startup --python scripts/blender/make_scenes.py -- "$WORK"
-for name in probe_point probe_spot probe_sun default default_ortho default_portrait showcase; do
+for name in probe_point probe_spot probe_sun probe_area probe_area_disk probe_area45 default default_ortho default_portrait showcase; do
     dir=$WORK/$name
     mkdir -p "$dir"
     spp=1

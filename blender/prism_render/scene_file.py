@@ -200,8 +200,72 @@ def light_tables(depsgraph):
                       f"intensity = {toml_number(light.energy * over_pi)}", ""]
             if light.angle > 0:
                 notes.append(f"light '{obj.name}': a sun's angle is not carried; hard shadows")
+        elif light.type == "AREA":
+            area_lines, area_notes = area_light_table(obj.name, name, light, m)
+            lines += area_lines
+            notes += area_notes
         else:
             notes.append(f"light '{obj.name}': {light.type.lower()} lights are not supported; skipped")
+    return lines, notes
+
+
+def area_light_table(label, name, light, m):
+    """An area light as the scene file's rectangle or disk light (an
+    ellipse as the disk of the same area, noted). Cycles renders an area
+    light of P watts as a one-sided Lambertian emitter of radiance
+    P / (4·A) (A its area) towards its local −Z: measured by the probes
+    (P / (π·A), a flux of P, comes out 4/π too bright). Over glTF's
+    materials (diffuse base colour / π) that is the scene file's
+    `intensity` as it stands."""
+    notes = []
+    rot = m.to_3x3()
+    sx, sy, _ = m.to_scale()
+    x_axis = (rot @ _vec(1.0, 0.0, 0.0)).normalized()
+    y_axis = (rot @ _vec(0.0, 1.0, 0.0)).normalized()
+    down = (rot @ _vec(0.0, 0.0, -1.0)).normalized()
+    size_x = light.size * sx
+    size_y = (light.size_y if light.shape in {"RECTANGLE", "ELLIPSE"} else light.size) * sy
+    lines = [f"[lights.{name}]"]
+    if light.shape in {"SQUARE", "RECTANGLE"}:
+        area = size_x * size_y
+        # edge_u × edge_v must point the way it emits: x × (−y) = −z.
+        lines += ['type = "rectangle"',
+                  f"edge_u = {toml_vector(to_y_up(x_axis * size_x))}",
+                  f"edge_v = {toml_vector(to_y_up(-y_axis * size_y))}"]
+    else:
+        if light.shape == "ELLIPSE" and abs(size_x - size_y) > 1e-9 * max(size_x, size_y):
+            notes.append(f"light '{label}': an ellipse is rendered as the disk of the same area")
+        radius = 0.5 * math.sqrt(size_x * size_y)
+        area = math.pi * radius * radius
+        lines += ['type = "disk"',
+                  f"normal = {toml_vector(to_y_up(down))}",
+                  f"radius = {toml_number(radius)}"]
+    spread = getattr(light, "spread", math.pi)
+    if spread < math.pi - 1e-6:
+        notes.append(f"light '{label}': a spread below 180° is not carried; it emits as a Lambertian area")
+    if area <= 0.0:
+        return [], [f"light '{label}': an area light of size 0 is skipped"]
+    over_pi = 1.0 if GLTF_DIFFUSE_OVER_PI else 1.0 / math.pi
+    lines += [f"position = {toml_vector(to_y_up(m.translation))}",
+              f"color = {toml_vector(light.color)}",
+              f"intensity = {toml_number(light.energy / (4.0 * area) * over_pi)}",
+              "samples = 16", ""]
+    return lines, notes
+
+
+def area_light_tables(depsgraph):
+    """The scene's area lights alone: glTF has no area light, so with
+    "Lights: glTF File" they come through the scene file."""
+    lines, notes, names = [], [], {}
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        if obj.type != "LIGHT" or obj.data.type != "AREA":
+            continue
+        count = names[obj.name] = names.get(obj.name, 0) + 1
+        name = toml_string(obj.name if count == 1 else f"{obj.name} {count}")
+        area_lines, area_notes = area_light_table(obj.name, name, obj.data, inst.matrix_world)
+        lines += area_lines
+        notes += area_notes
     return lines, notes
 
 
@@ -244,9 +308,14 @@ def scene_toml(depsgraph, glb_name, settings):
         light_lines, light_notes = light_tables(depsgraph)
         lines += light_lines
         notes += light_notes
-    elif any(o.type == "LIGHT" and o.data.type in {"POINT", "SPOT"} and o.data.shadow_soft_size > 0
-             for o in scene.objects):
-        notes.append("light radii (soft shadows) are carried with Lights: Scene File; hard shadows")
+    else:
+        # glTF has no area light: those come through the scene file.
+        light_lines, light_notes = area_light_tables(depsgraph)
+        lines += light_lines
+        notes += light_notes
+        if any(o.type == "LIGHT" and o.data.type in {"POINT", "SPOT"} and o.data.shadow_soft_size > 0
+               for o in scene.objects):
+            notes.append("light radii (soft shadows) are carried with Lights: Scene File; hard shadows")
     lines += [
         "[[objects]]",
         'type = "mesh"',

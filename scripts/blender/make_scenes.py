@@ -1,4 +1,7 @@
 """Builds the test scenes as .blend files in OUT:
+  probe_area, probe_area_disk, probe_area45: the same plane under a 100 W
+    area light (a 1 x 1 square, a disk 1 across) 4 above its centre, or
+    the square 1.5 above it probed 45 degrees off its axis;
   probe_point, probe_spot, probe_sun: a 4x4 diffuse plane (albedo 0.8,
     roughness 1) at z = 0 under one light 4 units above its centre, a camera
     looking straight down, black world, Standard view transform. Nothing
@@ -103,6 +106,27 @@ for kind in ("POINT", "SPOT", "SUN"):
     light.location = (0.0, 0.0, 4.0)  # points down -Z
     scene.collection.objects.link(light)
     bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, f"probe_{kind.lower()}.blend"), copy=True)
+    bpy.data.objects.remove(light, do_unlink=True)
+
+# Area lights (issue 29): a 1 x 1 square 4 above the centre (probe_area),
+# a disk of diameter 1 4 above it (probe_area_disk), and the square 1.5
+# above the plane probed 1.5 off its foot, 45 degrees off its axis
+# (probe_area45); 100 W each, emitting down.
+for name, shape, height, probe in (("area", "SQUARE", 4.0, None),
+                                   ("area_disk", "DISK", 4.0, None),
+                                   ("area45", "SQUARE", 1.5, (1.5, 0.0, 0.0))):
+    light_data = bpy.data.lights.new(f"{name} light", "AREA")
+    light_data.shape = shape
+    light_data.size = 1.0
+    light_data.energy = 100.0
+    light = bpy.data.objects.new(f"{name} light", light_data)
+    light.location = (0.0, 0.0, height)
+    scene.collection.objects.link(light)
+    if probe is not None:
+        scene["prism_probe"] = probe
+    bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, f"probe_{name}.blend"), copy=True)
+    if probe is not None:
+        del scene["prism_probe"]
     bpy.data.objects.remove(light, do_unlink=True)
 
 # The showcase (issue 15): texture transform, mirror, glass, emission, spot.
