@@ -5,8 +5,10 @@
 //! Od = baseColorFactor × baseColorTexture, kd = 1 − metallic,
 //! kr = metallic × baseColorFactor (a tinted mirror), ks = 1 − roughness with a Blinn exponent 2/α² − 2
 //! (α = roughness²), kt = KHR_materials_transmission × baseColorFactor, ior =
-//! KHR_materials_ior (1.5 by default). What is not mapped is named in a
-//! warning.
+//! KHR_materials_ior (1.5 by default); where kr or kt is not zero, the
+//! material's `roughness` is glTF's, so the reflection and the transmitted
+//! light spread over its GGX lobe (`shading/glossy.rs`). What is not mapped
+//! is named in a warning.
 //!
 //! The file is read as untrusted input: the JSON is deserialized without the
 //! gltf crate's validation (which indexes without checking) and nothing is
@@ -1112,9 +1114,13 @@ impl<'a> Reader<'a> {
             },
             highlight: Highlight::Blinn,
             emission,
-            // The reflection stays sharp: a glossy lobe from glTF's
-            // roughness is the Blender issue's to weigh (its cost per hit).
-            roughness: 0.0,
+            // A metal's reflection and the transmitted light spread over
+            // glTF's roughness (the same perceptual roughness, GGX α = r²).
+            roughness: if kr == DVec3::ZERO && kt == DVec3::ZERO {
+                0.0
+            } else {
+                roughness
+            },
             glossy_samples: 16,
         })
     }
