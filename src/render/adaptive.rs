@@ -13,11 +13,10 @@
 //! its random stream is keyed by them (not by a pixel), and with jitter
 //! its offset too. So a corner shared by two pixels, two tiles, two
 //! threads or two farm regions is the same sample, and any region split
-//! gives the whole render's bits. Samples are kept while a row of pixels
-//! and the row below it are rendered, so neighbours share the work; the
-//! cache only saves work, it never changes a value.
+//! gives the whole render's bits. A tile keeps its samples while a row of
+//! pixels and the row below it are rendered, so neighbours share the work;
+//! the cache only saves work, it never changes a value.
 
-use std::cell::RefCell;
 use std::collections::HashMap;
 use std::ops::Range;
 
@@ -31,64 +30,43 @@ use crate::settings::{Adaptive, RenderSettings};
 use crate::shading::whitted::Whitted;
 use crate::stats::RayStats;
 
-/// Samples traced so far along the current rows, by lattice coordinates.
+/// The samples a tile has traced, by lattice coordinates: those of the
+/// row being rendered and the edge it shares with the row below.
 #[derive(Default)]
-struct Samples {
-    /// The rows the cache belongs to: (scene, seed, first x, end x, last y).
-    rows: Option<(usize, u64, u32, u32, u32)>,
+pub struct TileSamples {
     values: HashMap<(u32, u32), DVec3>,
 }
 
-thread_local! {
-    static SAMPLES: RefCell<Samples> = RefCell::new(Samples::default());
-}
-
-/// Pushes onto `out` the pixels `xs` of row `y`, anti-aliased adaptively.
-/// `tile_top`: whether `y` starts a tile (the cache starts afresh there, so
-/// that the rays counted depend on the tiling, not on which thread took
-/// which tile).
+/// Pushes onto `out` the pixels `xs` of row `y`, anti-aliased adaptively;
+/// `samples` are the tile's, its rows rendered top to bottom.
 #[allow(clippy::too_many_arguments)]
 pub fn render_row_adaptive(
     scene: &Scene,
     tracer: &Whitted,
     settings: &RenderSettings,
     adaptive: Adaptive,
+    samples: &mut TileSamples,
     y: u32,
     xs: Range<u32>,
-    tile_top: bool,
     stats: &mut RayStats,
     out: &mut Vec<DVec3>,
 ) {
-    let seed = lattice_seed(settings);
-    SAMPLES.with(|cell| {
-        let mut cache = cell.borrow_mut();
-        let key = (scene as *const Scene as usize, seed, xs.start, xs.end);
-        let continues = !tile_top
-            && cache
-                .rows
-                .is_some_and(|(s, k, x0, x1, last)| (s, k, x0, x1) == key && last + 1 == y);
-        let top = y << lattice_shift(adaptive);
-        if continues {
-            // Only the row's top edge is shared with what comes next.
-            cache.values.retain(|&(_, j), _| j == top);
-        } else {
-            cache.values.clear();
-        }
-        cache.rows = Some((key.0, key.1, key.2, key.3, y));
-        let mut lattice = Lattice {
-            scene,
-            tracer,
-            settings,
-            adaptive,
-            seed,
-            values: &mut cache.values,
-            stats,
-        };
-        let shift = lattice_shift(adaptive);
-        for x in xs {
-            out.push(lattice.square(x << shift, top, 1 << shift, 0));
-        }
-    });
+    let shift = lattice_shift(adaptive);
+    let top = y << shift;
+    // Of the row above, only its bottom edge (this row's top) is shared.
+    samples.values.retain(|&(_, j), _| j == top);
+    let mut lattice = Lattice {
+        scene,
+        tracer,
+        settings,
+        adaptive,
+        seed: lattice_seed(settings),
+        values: &mut samples.values,
+        stats,
+    };
+    for x in xs {
+        out.push(lattice.square(x << shift, top, 1 << shift, 0));
+    }
 }
 
 /// The lattice's spacing as a power of two per pixel: `depth` cuts, and

@@ -145,7 +145,7 @@ pub fn render_aov(
         settings,
         region,
         observer,
-        |tracer, y, xs, stats, out| {
+        |tracer, _: &mut (), y, xs, stats, out| {
             out.extend(xs.map(|x| pixel(tracer, x, y, stats)));
         },
     )

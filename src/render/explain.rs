@@ -173,7 +173,7 @@ pub fn explain(
         root: None,
     };
     let mut stats = RayStats::default();
-    let (pixel, radiance, lens, time) = render_pixel_recorded(
+    let recorded = render_pixel_recorded(
         scene,
         &tracer,
         settings,
@@ -187,10 +187,10 @@ pub fn explain(
         pixel: [x, y],
         sample,
         samples: samples as u32,
-        radiance: radiance.to_array(),
-        pixel_radiance: pixel.to_array(),
-        lens_point: lens.map(|p| p.to_array()),
-        time,
+        radiance: recorded.sample.to_array(),
+        pixel_radiance: recorded.pixel.to_array(),
+        lens_point: recorded.lens.map(|p| p.to_array()),
+        time: recorded.time,
         tree: recorder.root.unwrap_or_default(),
     })
 }

@@ -116,28 +116,27 @@ pub fn render_region(
         settings,
         region,
         observer,
-        |tracer, y, xs, stats, out| match settings.adaptive {
-            Some(a) => {
-                // Tiles start every TILE rows from the region's top.
-                let tile_top = (y - region.y0).is_multiple_of(TILE);
-                adaptive::render_row_adaptive(
-                    scene, tracer, settings, a, y, xs, tile_top, stats, out,
-                );
-            }
+        |tracer, samples: &mut adaptive::TileSamples, y, xs, stats, out| match settings.adaptive {
+            Some(a) => adaptive::render_row_adaptive(
+                scene, tracer, settings, a, samples, y, xs, stats, out,
+            ),
             None => render_row(scene, tracer, settings, y, xs, stats, out),
         },
     )
 }
 
-/// The render loop over `region`'s tiles, `row(tracer, y, xs, stats, out)`
-/// pushing onto `out` the values (the radiance, or an AOV) of the pixels
-/// `xs` of row `y`, in order.
-fn render_with(
+/// The render loop over `region`'s tiles, `row(tracer, tile_state, y, xs,
+/// stats, out)` pushing onto `out` the values (the radiance, or an AOV) of
+/// the pixels `xs` of row `y`, in order. `tile_state` starts afresh
+/// (`S::default()`) at every tile and goes with it row by row, top to
+/// bottom (the adaptive sampler keeps the samples a row shares with the
+/// next there).
+fn render_with<S: Default>(
     scene: &Scene,
     settings: &RenderSettings,
     region: Region,
     observer: &dyn RenderObserver,
-    row: impl Fn(&Whitted, u32, Range<u32>, &mut RayStats, &mut Vec<DVec3>) + Sync,
+    row: impl Fn(&Whitted, &mut S, u32, Range<u32>, &mut RayStats, &mut Vec<DVec3>) + Sync,
 ) -> Result<RenderOutput, RenderError> {
     settings.check().map_err(RenderError::Settings)?;
     if !Region::full(settings.width, settings.height).contains(&region) || region.area() == 0 {
@@ -177,11 +176,13 @@ fn render_with(
                     return Some((tile, pixels, stats));
                 }
                 let mut pixels = Vec::with_capacity(tile.area() as usize);
+                let mut state = S::default();
                 for y in tile.y0..tile.y1 {
                     if observer.cancelled() {
                         return None;
                     }
-                    row(&tracer, y, tile.x0..tile.x1, &mut stats, &mut pixels);
+                    let xs = tile.x0..tile.x1;
+                    row(&tracer, &mut state, y, xs, &mut stats, &mut pixels);
                 }
                 let n = pixels.len() as u64;
                 observer.tile_done(tile, &pixels, done.fetch_add(n, Ordering::Relaxed) + n);
@@ -213,7 +214,7 @@ pub fn render_pixel(
     y: u32,
     stats: &mut RayStats,
 ) -> DVec3 {
-    render_pixel_recorded(scene, tracer, settings, x, y, stats, None, &mut ()).0
+    render_pixel_recorded(scene, tracer, settings, x, y, stats, None, &mut ()).pixel
 }
 
 /// [`render_pixel`] for each pixel of `xs` in row `y`, pushed onto `out`
@@ -268,11 +269,22 @@ pub fn render_row(
     }
 }
 
+/// A pixel and the last of its samples a recorder heard.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RecordedPixel {
+    /// The pixel: the mean of its samples.
+    pub pixel: DVec3,
+    /// The recorded sample's radiance.
+    pub sample: DVec3,
+    /// Its point on the lens (see [`camera_ray`]); `None` for a pinhole.
+    pub lens: Option<glam::DVec2>,
+    /// The instant it saw, in frames after the frame's start; `None`
+    /// without an open shutter on a moving scene.
+    pub time: Option<f64>,
+}
+
 /// [`render_pixel`], with sample `recorded` (every sample: `None`) traced
-/// through `recorder`; returns the pixel, the last recorded sample's
-/// radiance, its point on the lens (see [`camera_ray`]; `None` for a
-/// pinhole) and the instant it saw (frames after the frame's start; `None`
-/// without an open shutter on a moving scene).
+/// through `recorder`.
 #[allow(clippy::too_many_arguments)]
 pub fn render_pixel_recorded<R: Recorder>(
     scene: &Scene,
@@ -283,16 +295,19 @@ pub fn render_pixel_recorded<R: Recorder>(
     stats: &mut RayStats,
     recorded: Option<usize>,
     recorder: &mut R,
-) -> (DVec3, DVec3, Option<glam::DVec2>, Option<f64>) {
+) -> RecordedPixel {
     let mut rng = PixelRng::new(frame_seed(settings.seed, settings.frame), x, y);
     let strata = Strata::new(settings.spp as usize);
     let spp = strata.len();
     let lens_key = lens_key(scene, &mut rng);
     let time_key = time_key(scene, &mut rng);
     let mut sum = DVec3::ZERO;
-    let mut sample_radiance = DVec3::ZERO;
-    let mut sample_lens = None;
-    let mut sample_time = None;
+    let mut recorded_sample = RecordedPixel {
+        pixel: DVec3::ZERO,
+        sample: DVec3::ZERO,
+        lens: None,
+        time: None,
+    };
     for s in 0..spp {
         let instant = instant_of(scene, s, spp, time_key, &mut rng);
         let time = instant
@@ -305,14 +320,21 @@ pub fn render_pixel_recorded<R: Recorder>(
         let (ray, lens) = camera_ray(scene, settings, &strata, s, x, y, lens_key, &mut rng);
         let radiance = if recorded.is_none_or(|k| k == s) {
             let r = tracer.radiance_recorded(&ray, &mut rng, stats, recorder);
-            (sample_radiance, sample_lens, sample_time) = (r, lens, time);
+            (
+                recorded_sample.sample,
+                recorded_sample.lens,
+                recorded_sample.time,
+            ) = (r, lens, time);
             r
         } else {
             tracer.radiance(&ray, &mut rng, stats)
         };
         sum += radiance;
     }
-    (sum / spp as f64, sample_radiance, sample_lens, sample_time)
+    RecordedPixel {
+        pixel: sum / spp as f64,
+        ..recorded_sample
+    }
 }
 
 /// The key of the pixel's pairing of film strata with lens strata, drawn
@@ -326,10 +348,15 @@ fn lens_key(scene: &Scene, rng: &mut PixelRng) -> u32 {
     // A keyed aperture may open during the shutter: any instant's lens.
     let lens = |s: &Scene| s.camera.lens.is_some();
     if lens(scene) || scene.motion.iter().any(lens) {
-        (rng.uniform() * 4_294_967_296.0) as u32
+        draw_key(rng)
     } else {
         0
     }
+}
+
+/// 32 random bits from the pixel's stream: a permutation's key.
+fn draw_key(rng: &mut PixelRng) -> u32 {
+    (rng.uniform() * 4_294_967_296.0) as u32
 }
 
 /// The key of the pixel's pairing of samples with shares of the exposure,
@@ -339,7 +366,7 @@ fn time_key(scene: &Scene, rng: &mut PixelRng) -> u32 {
     if scene.motion.is_empty() {
         0
     } else {
-        (rng.uniform() * 4_294_967_296.0) as u32
+        draw_key(rng)
     }
 }
 

@@ -285,6 +285,7 @@ pub fn check_at(
     }
     let camera = camera?;
     Some(Checked {
+        shutter_at: file.render.shutter.as_ref().map(|s| s.span().start),
         primitives,
         scene: Scene {
             camera,
@@ -323,6 +324,8 @@ pub struct Checked {
     primitives: Vec<Primitive>,
     /// Everything else, with an empty aggregate.
     scene: Scene,
+    /// Where the `shutter` key starts in the source, if it is there.
+    shutter_at: Option<usize>,
 }
 
 impl Checked {
@@ -330,6 +333,12 @@ impl Checked {
     /// instants are built too.
     pub fn shutter_open(&self) -> bool {
         self.scene.settings.shutter.is_some() && self.scene.animated
+    }
+
+    /// The byte offset of the `shutter` key in the source (0 without one):
+    /// where a refusal of its instants points.
+    pub fn shutter_at(&self) -> usize {
+        self.shutter_at.unwrap_or(0)
     }
 
     /// What loading built and read so far.

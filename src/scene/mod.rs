@@ -227,8 +227,9 @@ impl Scene {
         base_dir: &Path,
         options: &LoadOptions,
     ) -> Result<Scene, SceneError> {
-        let scene = check(source, origin, base_dir, options)?.finish();
-        scene.with_motion(origin, shutter_key(source), |offset| {
+        let checked = check(source, origin, base_dir, options)?;
+        let at = error::line_column(source, checked.shutter_at());
+        checked.finish().with_motion(origin, at, |offset| {
             check_at(source, origin, base_dir, options, offset).map(build::Checked::finish)
         })
     }
@@ -341,7 +342,7 @@ impl Scene {
                     drop(source);
                     return Ok(checked.finish());
                 }
-                let at = shutter_key(&source);
+                let at = error::line_column(&source, checked.shutter_at());
                 checked.finish().with_motion(&origin, at, |offset| {
                     check_at(&source, &origin, base_dir, options, offset)
                         .map(build::Checked::finish)
@@ -442,17 +443,6 @@ fn check(
     options: &LoadOptions,
 ) -> Result<build::Checked, SceneError> {
     check_at(source, origin, base_dir, options, 0.0)
-}
-
-/// Line and column of the `shutter` key (1:1 if it cannot be found): where
-/// a refusal of its instants points.
-fn shutter_key(source: &str) -> (usize, usize) {
-    let offset = source
-        .match_indices("shutter")
-        .map(|(i, _)| i)
-        .find(|&i| source[..i].ends_with('\n') || i == 0)
-        .unwrap_or(0);
-    error::line_column(source, offset)
 }
 
 /// [`check`] with keyed values `offset` frames after the frame asked for.

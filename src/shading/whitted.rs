@@ -364,25 +364,29 @@ impl<'a> Whitted<'a> {
         if material.roughness > 0.0 {
             return color + self.glossy(ray, &point, &split, path, rng, stats, rec);
         }
-        if split.kr != DVec3::ZERO {
-            if self.worth_tracing(path.weight * split.kr) {
-                let r = Ray::spawn(hit.point, hit.normal, reflect(ray.direction, point.n));
-                let child = path.child(RayKind::Reflection, split.kr, path.media);
-                color += split.kr * self.trace(&r, child, rng, stats, rec);
-            } else {
-                rec.stop(Stop::ReflectionWeight);
-            }
+        if split.kr != DVec3::ZERO && self.goes_on(&path, split.kr, Stop::ReflectionWeight, rec) {
+            let r = Ray::spawn(hit.point, hit.normal, reflect(ray.direction, point.n));
+            let child = path.child(RayKind::Reflection, split.kr, path.media);
+            color += split.kr * self.trace(&r, child, rng, stats, rec);
         }
-        if let Some(t) = split.refracted {
-            if self.worth_tracing(path.weight * split.kt) {
-                let r = Ray::spawn(hit.point, hit.normal, t.normalize());
-                let child = path.child(RayKind::Refraction, split.kt, split.media_beyond);
-                color += split.kt * self.trace(&r, child, rng, stats, rec);
-            } else {
-                rec.stop(Stop::RefractionWeight);
-            }
+        if let Some(t) = split.refracted
+            && self.goes_on(&path, split.kt, Stop::RefractionWeight, rec)
+        {
+            let r = Ray::spawn(hit.point, hit.normal, t.normalize());
+            let child = path.child(RayKind::Refraction, split.kt, split.media_beyond);
+            color += split.kt * self.trace(&r, child, rng, stats, rec);
         }
         color
+    }
+
+    /// Whether a secondary ray of weight `k` at this hit is traced
+    /// ([`worth_tracing`](Self::worth_tracing)); if not, `rec` hears why.
+    fn goes_on<R: Recorder>(&self, path: &PathState, k: DVec3, stop: Stop, rec: &mut R) -> bool {
+        let worth = self.worth_tracing(path.weight * k);
+        if !worth {
+            rec.stop(stop);
+        }
+        worth
     }
 
     /// The reflected and transmitted light of a rough surface: each a
@@ -403,16 +407,11 @@ impl<'a> Whitted<'a> {
         rec: &mut R,
     ) -> DVec3 {
         let hit = &point.hit;
-        let reflects = split.kr != DVec3::ZERO;
-        let transmits = split.refracted.is_some() && split.kt != DVec3::ZERO;
-        if reflects && !self.worth_tracing(path.weight * split.kr) {
-            rec.stop(Stop::ReflectionWeight);
-        }
-        if transmits && !self.worth_tracing(path.weight * split.kt) {
-            rec.stop(Stop::RefractionWeight);
-        }
-        let reflects = reflects && self.worth_tracing(path.weight * split.kr);
-        let transmits = transmits && self.worth_tracing(path.weight * split.kt);
+        let reflects =
+            split.kr != DVec3::ZERO && self.goes_on(&path, split.kr, Stop::ReflectionWeight, rec);
+        let transmits = split.refracted.is_some()
+            && split.kt != DVec3::ZERO
+            && self.goes_on(&path, split.kt, Stop::RefractionWeight, rec);
         if !reflects && !transmits {
             return DVec3::ZERO;
         }
