@@ -51,6 +51,8 @@ pub enum LightShape {
         cos_inner: f64,
         /// Cosine of the outer cone's half-angle (≤ `cos_inner`).
         cos_outer: f64,
+        /// How the intensity falls between the cones.
+        cone: SpotCone,
     },
     /// A glowing sphere, sampled with `samples` feelers per shading point.
     Sphere {
@@ -125,6 +127,27 @@ impl AreaLight {
                 u.length().max(v.length())
             }
             AreaOutline::Disk => u.length() + v.length(),
+        }
+    }
+}
+
+/// How a spot light's intensity falls off across its cone.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SpotCone {
+    /// KHR_lights_punctual's: see [`spot_attenuation`].
+    #[default]
+    Gltf,
+    /// Blender Cycles': see [`cycles_spot_attenuation`].
+    Cycles,
+}
+
+impl SpotCone {
+    /// The share of the intensity that leaves at cos θ from the axis.
+    #[inline]
+    pub fn attenuation(self, cos_angle: f64, cos_inner: f64, cos_outer: f64) -> f64 {
+        match self {
+            SpotCone::Gltf => spot_attenuation(cos_angle, cos_inner, cos_outer),
+            SpotCone::Cycles => cycles_spot_attenuation(cos_angle, cos_inner, cos_outer),
         }
     }
 }
@@ -278,9 +301,10 @@ impl Light {
                 direction,
                 cos_inner,
                 cos_outer,
+                cone,
             } => {
                 let mut s = self.towards_point(point, position);
-                s.falloff *= spot_attenuation(direction.dot(-s.direction), cos_inner, cos_outer);
+                s.falloff *= cone.attenuation(direction.dot(-s.direction), cos_inner, cos_outer);
                 LightSampler::Fixed(s)
             }
             LightShape::Directional { direction } => LightSampler::Fixed(LightSample {
@@ -534,6 +558,26 @@ pub fn spot_attenuation(cos_angle: f64, cos_inner: f64, cos_outer: f64) -> f64 {
     t * t
 }
 
+/// The share of a spot light's intensity that leaves it at angle θ from
+/// its axis in Blender's Cycles (its kernel's `spot_attenuation`, 2.8 to
+/// 3.x): cos θ × smoothstep(t), smoothstep(t) = 3t² − 2t³, with t running
+/// linearly in cos θ from 0 at the outer cone to 1 at the inner and
+/// clamped to [0, 1]; 0 on and beyond the outer cone. Cycles writes the
+/// band as spot_smooth = (1 − cos(size/2))·blend, so its inner cone is
+/// cos_inner = cos_outer + spot_smooth. Equal cones (blend 0): a hard edge.
+pub fn cycles_spot_attenuation(cos_angle: f64, cos_inner: f64, cos_outer: f64) -> f64 {
+    if cos_angle <= cos_outer {
+        return 0.0;
+    }
+    let band = cos_inner - cos_outer;
+    let t = if band > 0.0 {
+        ((cos_angle - cos_outer) / band).min(1.0)
+    } else {
+        1.0
+    };
+    cos_angle * t * t * (3.0 - 2.0 * t)
+}
+
 /// How far a feeler from the shading point in unit `direction` travels to
 /// the light's sphere (centre at `to_center` from the point, `radius`; the
 /// point outside): the nearer root of |t·D − C|² = r². With b = D·C and
@@ -671,6 +715,46 @@ mod tests {
     }
 
     #[test]
+    fn cycles_spot_attenuation_is_cosine_times_smoothstep() {
+        // Blender's spot of size 60° and blend 0.15: cos_outer = cos 30°,
+        // spot_smooth = (1 − cos 30°)·0.15.
+        let cos_outer = 0.75f64.sqrt();
+        let smooth = (1.0 - cos_outer) * 0.15;
+        let cos_inner = cos_outer + smooth;
+        // On the axis: cos 0 = 1.
+        assert_eq!(cycles_spot_attenuation(1.0, cos_inner, cos_outer), 1.0);
+        // Inside the inner cone only the cosine: at 10°, cos 10°.
+        let c10 = crate::math::transcendental::sin_cos(10f64.to_radians()).1;
+        assert_eq!(cycles_spot_attenuation(c10, cos_inner, cos_outer), c10);
+        // Halfway through the band: smoothstep(½) = ½, times cos θ.
+        let mid = cos_outer + 0.5 * smooth;
+        assert!((cycles_spot_attenuation(mid, cos_inner, cos_outer) - 0.5 * mid).abs() < 1e-12);
+        // A quarter in: 3/16 − 2/64 = 0.15625 (by hand), times cos θ.
+        let quarter = cos_outer + 0.25 * smooth;
+        let want = quarter * 0.15625;
+        assert!((cycles_spot_attenuation(quarter, cos_inner, cos_outer) - want).abs() < 1e-12);
+        // On and beyond the outer cone: dark, and behind the light too.
+        assert_eq!(
+            cycles_spot_attenuation(cos_outer, cos_inner, cos_outer),
+            0.0
+        );
+        assert_eq!(cycles_spot_attenuation(0.5, cos_inner, cos_outer), 0.0);
+        assert_eq!(cycles_spot_attenuation(-1.0, cos_inner, cos_outer), 0.0);
+        // Blend 0: a hard edge at the outer cone, the cosine inside it.
+        assert_eq!(
+            cycles_spot_attenuation(cos_outer + 1e-9, cos_outer, cos_outer),
+            cos_outer + 1e-9
+        );
+        assert_eq!(
+            cycles_spot_attenuation(cos_outer - 1e-9, cos_outer, cos_outer),
+            0.0
+        );
+        // The glTF cone has no cosine and a t² band.
+        assert_eq!(SpotCone::Gltf.attenuation(c10, cos_inner, cos_outer), 1.0);
+        assert_eq!(SpotCone::Cycles.attenuation(c10, cos_inner, cos_outer), c10);
+    }
+
+    #[test]
     fn spot_light_samples_carry_the_cone() {
         let l = Light {
             shape: LightShape::Spot {
@@ -678,6 +762,7 @@ mod tests {
                 direction: -DVec3::Y,
                 cos_inner: crate::math::transcendental::sin_cos(30f64.to_radians()).1,
                 cos_outer: crate::math::transcendental::sin_cos(45f64.to_radians()).1,
+                cone: SpotCone::Gltf,
             },
             radiance: DVec3::ONE,
             inverse_square: true,

@@ -79,7 +79,7 @@ use crate::geometry::{
     Cone, Csg, CsgChild, CsgOp, Cuboid, Disc, Ellipsoid, Mesh, MeshInstance, Plane, Polygon,
     Sphere, Torus,
 };
-use crate::lights::{AreaLight, AreaOutline, Light, LightShape};
+use crate::lights::{AreaLight, AreaOutline, Light, LightShape, SpotCone};
 use crate::limits;
 use crate::math::Transform;
 use crate::settings::RenderSettings;
@@ -890,6 +890,11 @@ impl Check<'_, '_> {
                 d.outer_angle.as_ref().map(Spanned::span),
                 "outer_angle",
             );
+            reject(
+                self,
+                d.cone_falloff.as_ref().map(Spanned::span),
+                "cone_falloff",
+            );
         }
         let shape = match kind {
             LightKind::Spot => {
@@ -914,6 +919,10 @@ impl Check<'_, '_> {
                     direction: self.direction(d.direction.as_ref()?, "direction"),
                     cos_inner: crate::math::transcendental::sin_cos(inner.to_radians()).1,
                     cos_outer: crate::math::transcendental::sin_cos(outer.to_radians()).1,
+                    cone: match d.cone_falloff.as_ref().map(|c| *c.get_ref()) {
+                        None | Some(ConeFalloffDesc::Gltf) => SpotCone::Gltf,
+                        Some(ConeFalloffDesc::Cycles) => SpotCone::Cycles,
+                    },
                 }
             }
             LightKind::Point | LightKind::Sphere => {
@@ -1787,11 +1796,13 @@ impl Check<'_, '_> {
                     direction,
                     cos_inner,
                     cos_outer,
+                    cone,
                 } => LightShape::Spot {
                     position: point(position),
                     direction: vector(direction),
                     cos_inner,
                     cos_outer,
+                    cone,
                 },
                 LightShape::Sphere {
                     center,

@@ -261,6 +261,16 @@ pub enum FalloffDesc {
     InverseSquare,
 }
 
+/// `cone_falloff = ...` (spot lights).
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum ConeFalloffDesc {
+    /// KHR_lights_punctual's t² between the cones.
+    Gltf,
+    /// Blender Cycles': cos θ × smoothstep between the cones.
+    Cycles,
+}
+
 /// `[lights.NAME]`.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -294,6 +304,8 @@ pub struct LightDesc {
     pub inner_angle: Option<Number>,
     /// Spot: half-angle in degrees beyond which nothing is lit.
     pub outer_angle: Option<Number>,
+    /// Spot: how the intensity falls off across the cone.
+    pub cone_falloff: Option<Spanned<ConeFalloffDesc>>,
 }
 
 /// Object kinds.

@@ -676,6 +676,34 @@ mod tests {
     }
 
     #[test]
+    fn spot_cone_falloff_is_gltf_unless_cycles_is_asked() {
+        let spot = "[lights.a]\ntype = \"spot\"\nposition = [0, 4, 0]\ndirection = [0, -1, 0]\n\
+                    inner_angle = 20\nouter_angle = 30\n";
+        let cone = |text: &str| match build(text).unwrap().lights[0].shape {
+            LightShape::Spot { cone, .. } => cone,
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(cone(spot), crate::lights::SpotCone::Gltf);
+        assert_eq!(
+            cone(&format!("{spot}cone_falloff = \"gltf\"")),
+            crate::lights::SpotCone::Gltf
+        );
+        assert_eq!(
+            cone(&format!("{spot}cone_falloff = \"cycles\"")),
+            crate::lights::SpotCone::Cycles
+        );
+        let m = messages(&format!("{spot}cone_falloff = \"eevee\""));
+        assert!(m[0].contains("unknown variant `eevee`"), "{m:?}");
+        let m = messages(
+            "[lights.a]\ntype = \"point\"\nposition = [0, 1, 0]\ncone_falloff = \"cycles\"",
+        );
+        assert!(
+            m[0].contains("`cone_falloff` does not apply to a point light"),
+            "{m:?}"
+        );
+    }
+
+    #[test]
     fn keys_of_other_kinds_are_refused() {
         let m = messages(
             "[lights.a]\ntype = \"point\"\nposition = [0, 1, 0]\nradius = 2\n[[objects]]\ntype = \"plane\"\nmaterial = \"m\"\nnormal = [0, 1, 0]\nradius = 1",

@@ -31,7 +31,7 @@ use gltf::json::{self, Index, Root};
 
 use super::{Model, ModelCamera, ModelError, ModelProjection};
 use crate::geometry::MeshData;
-use crate::lights::{Light, LightShape};
+use crate::lights::{Light, LightShape, SpotCone};
 use crate::limits::{MAX_MODEL_PLACEMENTS, MAX_VALUE};
 use crate::scene::resources::{Resources, TextureKey};
 use crate::shading::texture::{Sampling, Wrap, texture_transform};
@@ -1376,6 +1376,7 @@ impl<'a> Reader<'a> {
                     direction: world.transform_vector3(-DVec3::Z).normalize_or_zero(),
                     cos_inner: crate::math::transcendental::sin_cos(inner).1,
                     cos_outer: crate::math::transcendental::sin_cos(outer).1,
+                    cone: SpotCone::Gltf,
                 }
             }
             Checked::Invalid => return Err(format!("{at}.type: unknown light type")),
