@@ -49,6 +49,11 @@ pub struct Camera {
     pub projection: Projection,
     /// A thin lens (depth of field); `None`: a pinhole.
     pub lens: Option<ThinLens>,
+    /// Lens shift: the film moved across the view, off centre, by
+    /// (right, up) times its extent along the fov axis (perspective) or
+    /// times `view_height` (orthographic); Blender's shift_x and shift_y.
+    /// The view direction and the focus plane stay; the frustum leans.
+    pub shift: DVec2,
 }
 
 /// A thin lens in front of the film (pbrt's `lensradius` and
@@ -82,6 +87,7 @@ impl Camera {
             up: right.cross(forward),
             projection,
             lens: None,
+            shift: DVec2::ZERO,
         })
     }
 
@@ -102,13 +108,18 @@ impl Camera {
                     FovAxis::Vertical => (half * aspect, half),
                     FovAxis::Horizontal => (half, half / aspect),
                 };
-                let dir = self.forward + sx * half_w * self.right + sy * half_h * self.up;
+                // The shift is in extents along the fov axis, 2·half.
+                let (ox, oy) = (2.0 * half * self.shift.x, 2.0 * half * self.shift.y);
+                let dir =
+                    self.forward + (sx * half_w + ox) * self.right + (sy * half_h + oy) * self.up;
                 Ray::new(self.position, dir)
             }
             Projection::Orthographic { view_height } => {
                 let half_h = 0.5 * view_height;
-                let origin =
-                    self.position + sx * half_h * aspect * self.right + sy * half_h * self.up;
+                let (ox, oy) = (view_height * self.shift.x, view_height * self.shift.y);
+                let origin = self.position
+                    + (sx * half_h * aspect + ox) * self.right
+                    + (sy * half_h + oy) * self.up;
                 Ray {
                     origin,
                     direction: self.forward,
@@ -159,15 +170,15 @@ impl Camera {
                     FovAxis::Horizontal => (half, half / aspect),
                 };
                 (
-                    d.dot(self.right) / (z * half_w),
-                    d.dot(self.up) / (z * half_h),
+                    (d.dot(self.right) / z - 2.0 * half * self.shift.x) / half_w,
+                    (d.dot(self.up) / z - 2.0 * half * self.shift.y) / half_h,
                 )
             }
             Projection::Orthographic { view_height } => {
                 let half_h = 0.5 * view_height;
                 (
-                    d.dot(self.right) / (half_h * aspect),
-                    d.dot(self.up) / half_h,
+                    (d.dot(self.right) - view_height * self.shift.x) / (half_h * aspect),
+                    (d.dot(self.up) - view_height * self.shift.y) / half_h,
                 )
             }
         };
@@ -191,6 +202,37 @@ mod tests {
                 assert!((px - x).abs() < 1e-9 && (py - y).abs() < 1e-9, "{px},{py}");
             }
             assert_eq!(camera.project(DVec3::new(0.0, 0.0, 9.0), 640, 480), None);
+        }
+    }
+
+    #[test]
+    fn lens_shift_moves_the_frustum_by_extents_of_the_fov_axis() {
+        // A shifted camera's pixel sees what the unshifted one sees
+        // shift × (the fitted extent in pixels) to the right and up: the
+        // height for a vertical fov and an orthographic view, the width
+        // for a horizontal fov. Its rays still leave the same eye.
+        let shift = DVec2::new(0.25, -0.1);
+        let ortho = Camera::look_at(
+            DVec3::new(0.0, 0.0, 5.0),
+            DVec3::ZERO,
+            DVec3::Y,
+            Projection::Orthographic { view_height: 3.0 },
+        )
+        .unwrap();
+        for (camera, extent) in [
+            (perspective(FovAxis::Vertical), 480.0),
+            (perspective(FovAxis::Horizontal), 640.0),
+            (ortho, 480.0),
+        ] {
+            let shifted = Camera { shift, ..camera };
+            for (x, y) in [(0.5, 0.5), (123.25, 77.0), (320.0, 240.0)] {
+                let a = shifted.ray(x, y, 640, 480);
+                let b = camera.ray(x + shift.x * extent, y - shift.y * extent, 640, 480);
+                assert!((a.origin - b.origin).length() < 1e-12, "{a:?} {b:?}");
+                assert!((a.direction - b.direction).length() < 1e-12, "{a:?} {b:?}");
+                let (px, py) = shifted.project(a.at(3.7), 640, 480).unwrap();
+                assert!((px - x).abs() < 1e-9 && (py - y).abs() < 1e-9, "{px},{py}");
+            }
         }
     }
 

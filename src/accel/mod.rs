@@ -157,6 +157,7 @@ impl Aggregate {
                 Shape::Csg(c) => c.medium().unwrap_or(h.material.unwrap_or(p.material)),
                 _ => h.material.unwrap_or(p.material),
             },
+            feeler_offset: h.feeler_offset,
         }
     }
 

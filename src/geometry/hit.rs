@@ -23,6 +23,9 @@ pub struct ShapeHit {
     /// A material chosen by the shape itself (a mesh's per-triangle
     /// material), overriding the primitive's.
     pub material: Option<u32>,
+    /// Where shadow feelers start, relative to the hit point: the shadow
+    /// terminator's lift on smooth-shaded meshes, else zero.
+    pub feeler_offset: DVec3,
 }
 
 impl ShapeHit {
@@ -37,6 +40,7 @@ impl ShapeHit {
             uv: DVec2::ZERO,
             color: DVec3::ONE,
             material: None,
+            feeler_offset: DVec3::ZERO,
         }
     }
 }
@@ -68,4 +72,7 @@ pub struct Hit {
     /// one (a part's material paints its part of the surface; the medium
     /// is the CSG's).
     pub medium: u32,
+    /// Where shadow feelers start, relative to `point` (see
+    /// [`ShapeHit::feeler_offset`]).
+    pub feeler_offset: DVec3,
 }

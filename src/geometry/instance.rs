@@ -70,9 +70,13 @@ impl MeshInstance {
     /// form: normals back to world space, the material slot to the scene's.
     #[inline]
     fn world_hit(&self, ray: &Ray, h: MeshHit) -> ShapeHit {
-        let (normal, shading_normal) = match &self.transform {
-            None => (h.normal, h.shading_normal),
-            Some(t) => (t.normal(h.normal), t.normal(h.shading_normal)),
+        let (normal, shading_normal, feeler_offset) = match &self.transform {
+            None => (h.normal, h.shading_normal, h.feeler_offset),
+            Some(t) => (
+                t.normal(h.normal),
+                t.normal(h.shading_normal),
+                t.to_world.transform_vector3(h.feeler_offset),
+            ),
         };
         let material = self
             .materials
@@ -84,6 +88,7 @@ impl MeshInstance {
             normal,
             front_face: ray.direction.dot(normal) < 0.0,
             shading_normal,
+            feeler_offset,
             uv: h.uv,
             color: h.color,
             material,

@@ -6,6 +6,7 @@ use glam::{DVec2, DVec3};
 use thiserror::Error;
 
 use super::Aabb;
+use super::terminator::terminator_offset;
 use super::triangle::{
     TriangleHit, WatertightLanes, WatertightRay, triangle_hit, triangle_hit_as,
     triangle_hit_dispatched, triangle_hit_lanes,
@@ -102,6 +103,10 @@ pub struct MeshHit {
     pub color: DVec3,
     /// Material slot of the triangle.
     pub material: u32,
+    /// Where shadow feelers start, relative to the hit: Hanika's lift off
+    /// the facet on smooth-shaded triangles (see
+    /// [`terminator`](super::terminator)), zero on flat ones.
+    pub feeler_offset: DVec3,
 }
 
 impl Mesh {
@@ -270,7 +275,7 @@ impl Mesh {
                 group.iter().all(|h| facing(h.1) > 0.0) || group.iter().all(|h| facing(h.1) < 0.0);
             if crossing {
                 let (_, position, h) = hits[i];
-                let surface = self.surface(position, h.barycentric, h.t);
+                let surface = self.surface(position, h.barycentric, h.t, direction);
                 match entered.take() {
                     None => entered = Some(surface),
                     Some(enter) => out.push((enter, surface)),
@@ -350,7 +355,7 @@ impl Mesh {
         self.bvh
             .closest_on(kernel, &NodeRay::new(origin, direction), t_max, &mut leaf);
         let (triangle, h) = leaf.best?;
-        Some(self.surface(triangle, h.barycentric, h.t))
+        Some(self.surface(triangle, h.barycentric, h.t, direction))
     }
 
     /// [`intersect`](Self::intersect) for each of `rays` (origin and
@@ -400,10 +405,10 @@ impl Mesh {
             limits[..t_max.len()].copy_from_slice(t_max);
             self.bvh
                 .closest_stream_on(kernel, &node_rays, rays.len(), &mut limits, &mut tests);
-            for (hit, test) in hits.iter_mut().zip(&tests) {
+            for (k, (hit, test)) in hits.iter_mut().zip(&tests).enumerate() {
                 *hit = test
                     .best
-                    .map(|(triangle, h)| self.surface(triangle, h.barycentric, h.t));
+                    .map(|(triangle, h)| self.surface(triangle, h.barycentric, h.t, ray(k).1));
             }
         }
     }
@@ -504,8 +509,8 @@ impl Mesh {
         };
         self.bvh
             .closest_packet_on(kernel, &packet, &mut limits, &mut leaf);
-        for (hit, best) in hits.iter_mut().zip(&leaf.best) {
-            *hit = best.map(|(triangle, h)| self.surface(triangle, h.barycentric, h.t));
+        for ((hit, best), ray) in hits.iter_mut().zip(&leaf.best).zip(rays) {
+            *hit = best.map(|(triangle, h)| self.surface(triangle, h.barycentric, h.t, ray.1));
         }
     }
 
@@ -548,17 +553,24 @@ impl Mesh {
         self.bvh.any_packet_on(kernel, &packet, &limits, leaf)
     }
 
-    fn surface(&self, triangle: usize, bary: DVec3, t: f64) -> MeshHit {
+    /// The surface at the point of weights `bary` on `triangle`, hit by a
+    /// ray along `direction`.
+    fn surface(&self, triangle: usize, bary: DVec3, t: f64, direction: DVec3) -> MeshHit {
         let [ia, ib, ic] = self.triangles[triangle].map(|i| i as usize);
         let [a, b, c] = self.corners(triangle);
         let normal = (b - a).cross(c - a).normalize_or_zero();
         let interpolate3 = |v: &[DVec3]| bary.x * v[ia] + bary.y * v[ib] + bary.z * v[ic];
-        let shading_normal = if self.normals.is_empty() {
-            normal
+        let (shading_normal, feeler_offset) = if self.normals.is_empty() {
+            (normal, DVec3::ZERO)
         } else {
-            interpolate3(&self.normals)
+            let shading_normal = interpolate3(&self.normals)
                 .try_normalize()
-                .unwrap_or(normal)
+                .unwrap_or(normal);
+            // The vertex normals on the side the ray sees.
+            let seen = if direction.dot(normal) < 0.0 { 1.0 } else { -1.0 };
+            let normals = [ia, ib, ic].map(|i| seen * self.normals[i].normalize_or_zero());
+            let offset = terminator_offset([a, b, c], normals, bary);
+            (shading_normal, offset)
         };
         let uv = if self.uvs.is_empty() {
             DVec2::ZERO
@@ -577,6 +589,7 @@ impl Mesh {
             uv,
             color,
             material: self.materials.get(triangle).copied().unwrap_or(0),
+            feeler_offset,
         }
     }
 }

@@ -6,7 +6,7 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use glam::{DAffine3, DMat3, DMat4, DQuat, DVec3, DVec4};
+use glam::{DAffine3, DMat3, DMat4, DQuat, DVec2, DVec3, DVec4};
 use toml::Spanned;
 
 use super::animation::{Animated, Animation, AnimationDesc, Interpolation, Lerp};
@@ -705,6 +705,18 @@ impl Check<'_, '_> {
         }
         if let Some(camera) = camera.as_mut() {
             camera.lens = self.lens(d, camera, look_at);
+            if let Some(shift) = &d.shift {
+                let [x, y] = *shift.get_ref();
+                // A shift of a thousand frames is a mistake, not a view.
+                if x.is_finite() && y.is_finite() && x.abs() <= 1e3 && y.abs() <= 1e3 {
+                    camera.shift = DVec2::new(x, y);
+                } else {
+                    self.error(
+                        shift.span(),
+                        format!("`shift` ([{x}, {y}]) must be finite and within ±1000"),
+                    );
+                }
+            }
         }
         camera
     }

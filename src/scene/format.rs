@@ -134,6 +134,8 @@ pub struct CameraDesc {
     pub focus_distance: Option<AnimatedNumber>,
     /// A point whose depth along the view direction is the focus distance.
     pub focus_on: Option<AnimatedTriple>,
+    /// Lens shift (right, up) in extents of the fov axis or view heights.
+    pub shift: Option<Spanned<[f64; 2]>>,
 }
 
 /// `fresnel = ...`.

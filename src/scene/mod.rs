@@ -704,6 +704,24 @@ mod tests {
     }
 
     #[test]
+    fn camera_shift_is_read_and_bounded() {
+        let camera = |shift: &str| {
+            Scene::from_toml(
+                &format!("[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\n{shift}"),
+                "t.toml",
+            )
+        };
+        assert_eq!(camera("").unwrap().camera.shift, glam::DVec2::ZERO);
+        let s = camera("shift = [0.25, -0.5]").unwrap();
+        assert_eq!(s.camera.shift, glam::DVec2::new(0.25, -0.5));
+        let e = camera("shift = [1e9, 0]").unwrap_err().to_string();
+        assert!(
+            e.contains("`shift` ([1000000000, 0]) must be finite"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn keys_of_other_kinds_are_refused() {
         let m = messages(
             "[lights.a]\ntype = \"point\"\nposition = [0, 1, 0]\nradius = 2\n[[objects]]\ntype = \"plane\"\nmaterial = \"m\"\nnormal = [0, 1, 0]\nradius = 1",

@@ -227,6 +227,15 @@ struct ShadingPoint<'m> {
     od: DVec3,
 }
 
+impl ShadingPoint<'_> {
+    /// Where this point's shadow feelers start: the hit lifted by its
+    /// shadow-terminator offset (smooth meshes), then off the surface.
+    #[inline]
+    fn feeler_origins(&self) -> SpawnOrigins {
+        SpawnOrigins::new(self.hit.point + self.hit.feeler_offset, self.hit.normal)
+    }
+}
+
 /// How a hit divides the rest of the path: the weights of the reflected and
 /// transmitted rays, the transmitted direction, the media beyond.
 struct Split {
@@ -546,7 +555,7 @@ impl<'a> Whitted<'a> {
             }
             _ => None,
         };
-        let origins = SpawnOrigins::new(point.hit.point, point.hit.normal);
+        let origins = point.feeler_origins();
         let mut sum = DVec3::ZERO;
         let mut batch = ArrayVec::<LightSample, SAMPLE_BATCH>::new();
         let mut feelers = FeelerBatch::<SAMPLE_BATCH>::default();
@@ -646,7 +655,7 @@ impl<'a> Whitted<'a> {
         let sample = batch.first();
         let behind = sample.is_none_or(|s| s.unlit(point.n));
         if let Some(sample) = sample.filter(|_| !behind) {
-            let origins = SpawnOrigins::new(point.hit.point, point.hit.normal);
+            let origins = point.feeler_origins();
             let visibility = self.visibility(&origins, sample, None, stats);
             rec.feeler(index, sample, visibility);
             if visibility != DVec3::ZERO {
