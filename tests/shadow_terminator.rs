@@ -6,6 +6,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use prism::math::transcendental::sin_cos;
 use prism::{RenderSettings, Scene, render};
 
 const SIZE: u32 = 241;
@@ -21,11 +22,8 @@ fn uv_sphere_obj(segments: usize, rings: usize, smooth: bool) -> String {
         let polar = std::f64::consts::PI * ring as f64 / rings as f64;
         for segment in 0..=segments {
             let azimuth = std::f64::consts::TAU * segment as f64 / segments as f64;
-            let p = [
-                polar.sin() * azimuth.cos(),
-                polar.cos(),
-                -polar.sin() * azimuth.sin(),
-            ];
+            let ((sp, cp), (sa, ca)) = (sin_cos(polar), sin_cos(azimuth));
+            let p = [sp * ca, cp, -sp * sa];
             writeln!(obj, "v {} {} {}", p[0], p[1], p[2]).unwrap();
             writeln!(obj, "vn {} {} {}", p[0], p[1], p[2]).unwrap();
         }
@@ -99,7 +97,11 @@ fn spheres(smooth: bool, segments: usize, towards_light: [f64; 3]) -> Spheres {
     let obj = dir.path().join("sphere.obj");
     std::fs::write(&obj, uv_sphere_obj(segments, segments / 2, smooth)).unwrap();
     Spheres {
-        mesh: render_sphere(dir.path(), "type = \"mesh\"\nfile = \"sphere.obj\"", towards_light),
+        mesh: render_sphere(
+            dir.path(),
+            "type = \"mesh\"\nfile = \"sphere.obj\"",
+            towards_light,
+        ),
         analytic: render_sphere(
             dir.path(),
             "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1",
@@ -153,9 +155,8 @@ fn a_smooth_low_poly_sphere_shades_as_the_sphere_up_to_its_terminator() {
         .filter_map(|y| {
             let (u, v) = plane_position(x, y);
             let n = glam::DVec3::new(u, v, (1.0 - u * u - v * v).max(0.0).sqrt());
-            (v.abs() < 0.95 && n.dot(s.towards_light) > -0.2).then(|| {
-                (n.dot(s.towards_light), s.mesh[(y * SIZE + x) as usize])
-            })
+            (v.abs() < 0.95 && n.dot(s.towards_light) > -0.2)
+                .then(|| (n.dot(s.towards_light), s.mesh[(y * SIZE + x) as usize]))
         })
         .collect();
     let peak = column

@@ -567,7 +567,11 @@ impl Mesh {
                 .try_normalize()
                 .unwrap_or(normal);
             // The vertex normals on the side the ray sees.
-            let seen = if direction.dot(normal) < 0.0 { 1.0 } else { -1.0 };
+            let seen = if direction.dot(normal) < 0.0 {
+                1.0
+            } else {
+                -1.0
+            };
             let normals = [ia, ib, ic].map(|i| seen * self.normals[i].normalize_or_zero());
             let offset = terminator_offset([a, b, c], normals, bary);
             (shading_normal, offset)
