@@ -30,6 +30,7 @@ pub mod image_io;
 pub mod lights;
 pub mod limits;
 pub mod math;
+pub mod query;
 pub mod render;
 pub mod scene;
 pub mod settings;

@@ -103,6 +103,10 @@ pub struct MeshHit {
     pub color: DVec3,
     /// Material slot of the triangle.
     pub material: u32,
+    /// The triangle's index in the [`MeshData`] the mesh was built from.
+    pub triangle: u32,
+    /// Barycentric weights of the triangle's corners a, b, c (sum 1).
+    pub barycentric: DVec3,
     /// Where shadow feelers start, relative to the hit: Hanika's lift off
     /// the facet on smooth-shaded triangles (see
     /// [`terminator`](super::terminator)), zero on flat ones.
@@ -310,6 +314,22 @@ impl Mesh {
             + self.triangles.len() * 12
             + self.materials.len() * 4
             + self.bvh.memory_bytes()
+    }
+
+    /// Calls `visit` with the index (in the [`MeshData`]) and corners of
+    /// each triangle in every leaf whose box `keep` accepts, descending
+    /// only into boxes it accepts: for queries that want every crossing
+    /// rather than the nearest or any (counting hits, inside tests).
+    pub fn visit_triangles(
+        &self,
+        keep: impl Fn(&Aabb) -> bool,
+        mut visit: impl FnMut(u32, [DVec3; 3]),
+    ) {
+        let order = self.bvh.order();
+        self.bvh.visit(keep, |position| {
+            visit(order[position], self.corners(position));
+            true
+        });
     }
 
     #[inline(always)]
@@ -593,6 +613,8 @@ impl Mesh {
             uv,
             color,
             material: self.materials.get(triangle).copied().unwrap_or(0),
+            triangle: self.bvh.order()[triangle],
+            barycentric: bary,
             feeler_offset,
         }
     }

@@ -26,6 +26,7 @@ import numpy as np
 
 from . import _prism
 from ._prism import SceneError
+from .rays import RayScene
 
 __all__ = [
     "Image",
@@ -41,6 +42,7 @@ __all__ = [
     "AOVS",
     "LIMITS",
     "escape_controls",
+    "RayScene",
 ]
 
 #: The debug views ``Scene.render(aov=...)`` takes.

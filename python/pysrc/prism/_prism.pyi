@@ -70,3 +70,56 @@ def escape_controls(text: str) -> str: ...
 def write(path: _Path, array: npt.NDArray[np.float32]) -> None: ...
 def to_srgb8(array: npt.NDArray[np.float32]) -> npt.NDArray[np.uint8]: ...
 def read_exr(path: _Path) -> Tuple[npt.NDArray[np.float32], Tuple[int, int, int, int]]: ...
+
+class RayScene:
+    """The extension's ray scene; ``prism.RayScene`` wraps it."""
+    def __init__(self) -> None: ...
+    def add_mesh(
+        self,
+        vertices: npt.NDArray[Any],
+        faces: npt.NDArray[np.int64],
+        transform: Optional[npt.NDArray[np.float64]] = None,
+    ) -> int: ...
+    def add_file(self, path: _Path, allow_read: Sequence[_Path] = ...) -> List[int]: ...
+    @property
+    def mesh_count(self) -> int: ...
+    @property
+    def triangle_count(self) -> int: ...
+    @property
+    def memory_bytes(self) -> int: ...
+    def is_closed(self, mesh_id: int) -> bool: ...
+    def intersect(
+        self,
+        origins: npt.NDArray[Any],
+        directions: npt.NDArray[Any],
+        tmin: float = 0.0,
+        tmax: float = ...,
+        threads: Optional[int] = None,
+    ) -> Dict[str, npt.NDArray[Any]]: ...
+    def occluded(
+        self,
+        origins: npt.NDArray[Any],
+        directions: npt.NDArray[Any],
+        tmin: float = 0.0,
+        tmax: float = ...,
+        threads: Optional[int] = None,
+    ) -> npt.NDArray[np.bool_]: ...
+    def count_intersections(
+        self,
+        origins: npt.NDArray[Any],
+        directions: npt.NDArray[Any],
+        tmin: float = 0.0,
+        tmax: float = ...,
+        threads: Optional[int] = None,
+    ) -> npt.NDArray[np.uint32]: ...
+    def all_intersections(
+        self,
+        origins: npt.NDArray[Any],
+        directions: npt.NDArray[Any],
+        tmin: float = 0.0,
+        tmax: float = ...,
+        threads: Optional[int] = None,
+    ) -> Dict[str, npt.NDArray[Any]]: ...
+    def contains(
+        self, points: npt.NDArray[Any], threads: Optional[int] = None
+    ) -> npt.NDArray[np.bool_]: ...

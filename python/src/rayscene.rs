@@ -1,0 +1,426 @@
+//! `prism._prism.RayScene`: the library's ray queries (`prism::query`) on
+//! NumPy arrays. Coordinates come in as C-contiguous (N, 3) float64 arrays
+//! read in place (float32 ones converted; the package `prism` makes other
+//! layouts contiguous first); answers go out as NumPy arrays that take over
+//! the library's vectors without a copy. A long query runs on a thread of
+//! its own while the caller waits without the GIL, taking it every 50 ms
+//! to let Python handle signals: Ctrl-C raises the cancel flag and the
+//! query stops at its next batch of rays.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, RwLock, mpsc};
+use std::time::Duration;
+
+use glam::DMat4;
+use numpy::{IntoPyArray, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use prism::limits;
+use prism::query::{QueryError, QueryOptions, RayScene as Scene, Rays};
+use prism::scene::LoadOptions;
+use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+/// Queries of this many rays or points or fewer run on the calling thread
+/// (without the GIL, but without checking for signals): a thread of their
+/// own would cost more than they take.
+const SMALL: usize = 4096;
+
+/// Meshes for exact ray queries (see `prism.RayScene`).
+#[pyclass(module = "prism._prism", name = "RayScene", frozen)]
+pub struct RayScene {
+    /// The scene queries read: replaced whole (copy on write) when a mesh
+    /// is added, so a query never waits on a build.
+    scene: RwLock<Arc<Scene>>,
+    /// Serialises adding meshes.
+    adding: Mutex<()>,
+}
+
+impl RayScene {
+    fn current(&self) -> PyResult<Arc<Scene>> {
+        self.scene
+            .read()
+            .map(|s| Arc::clone(&s))
+            .map_err(|_| PyRuntimeError::new_err("the ray scene was poisoned by a failed build"))
+    }
+}
+
+#[pymethods]
+impl RayScene {
+    #[new]
+    fn new() -> Self {
+        RayScene {
+            scene: RwLock::new(Arc::new(Scene::new())),
+            adding: Mutex::new(()),
+        }
+    }
+
+    /// Adds a mesh: `vertices` (V, 3) float64/float32, `faces` (F, 3)
+    /// int64, `transform` None or a (4, 4) float64 affine matrix. Returns
+    /// the mesh id.
+    #[pyo3(signature = (vertices, faces, transform=None))]
+    fn add_mesh(
+        &self,
+        py: Python<'_>,
+        vertices: &Bound<'_, PyAny>,
+        faces: &Bound<'_, PyAny>,
+        transform: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<u32> {
+        let vertices = Coords::of("vertices", vertices)?;
+        let vertices = vertices.slice()?;
+        let faces = face_indices(faces, vertices.len() / 3)?;
+        let transform = transform.map(matrix).transpose()?;
+        py.detach(|| {
+            let _adding = self.adding.lock().map_err(|_| poisoned())?;
+            let mut scene = Scene::clone(self.current_unlocked()?.as_ref());
+            let id = scene
+                .add_mesh(vertices, &faces, transform)
+                .map_err(query_error)?;
+            *self.scene.write().map_err(|_| poisoned())? = Arc::new(scene);
+            Ok(id)
+        })
+    }
+
+    /// Adds every mesh of a model file (OBJ, PLY, glTF/GLB) as Prism's
+    /// scenes read it, under the same read policy (`allow_read`: further
+    /// folders it may read). Returns the new mesh ids.
+    #[pyo3(signature = (path, allow_read=Vec::new()))]
+    fn add_file(
+        &self,
+        py: Python<'_>,
+        path: PathBuf,
+        allow_read: Vec<PathBuf>,
+    ) -> PyResult<Vec<u32>> {
+        let options = LoadOptions::with_allow_read(&allow_read, limits::DEFAULT_TEXTURE_MIB)
+            .map_err(|e| PyValueError::new_err(format!("allow_read: {e}")))?;
+        py.detach(|| {
+            let _adding = self.adding.lock().map_err(|_| poisoned())?;
+            let mut scene = Scene::clone(self.current_unlocked()?.as_ref());
+            let ids = scene.add_file(&path, &options).map_err(query_error)?;
+            *self.scene.write().map_err(|_| poisoned())? = Arc::new(scene);
+            Ok(ids)
+        })
+    }
+
+    /// Number of meshes.
+    #[getter]
+    fn mesh_count(&self) -> PyResult<usize> {
+        Ok(self.current()?.mesh_count())
+    }
+
+    /// Number of triangles (a mesh placed twice counted twice).
+    #[getter]
+    fn triangle_count(&self) -> PyResult<usize> {
+        Ok(self.current()?.triangle_count())
+    }
+
+    /// Heap memory of the meshes and their trees, in bytes.
+    #[getter]
+    fn memory_bytes(&self) -> PyResult<usize> {
+        Ok(self.current()?.memory_bytes())
+    }
+
+    /// Whether mesh `mesh_id` is closed (what `contains` needs).
+    fn is_closed(&self, py: Python<'_>, mesh_id: u32) -> PyResult<bool> {
+        let scene = self.current()?;
+        py.detach(|| scene.is_closed(mesh_id))
+            .ok_or_else(|| PyValueError::new_err(format!("mesh_id: no mesh {mesh_id}")))
+    }
+
+    /// The nearest hits as a dict of arrays: t, mesh_id, triangle_id, u,
+    /// v, normal.
+    #[pyo3(signature = (origins, directions, tmin=0.0, tmax=f64::INFINITY, threads=None))]
+    fn intersect<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        tmin: f64,
+        tmax: f64,
+        threads: Option<i64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let scene = self.current()?;
+        let (o, d) = (
+            Coords::of("origins", origins)?,
+            Coords::of("directions", directions)?,
+        );
+        let rays = Rays::new(o.slice()?, d.slice()?, tmin, tmax).map_err(query_error)?;
+        let n = rays.len();
+        let hits = run(py, n, threads_arg(threads)?, |options| {
+            scene.intersect(&rays, options)
+        })?;
+        let out = PyDict::new(py);
+        out.set_item("t", hits.t.into_pyarray(py))?;
+        out.set_item("mesh_id", hits.mesh_id.into_pyarray(py))?;
+        out.set_item("triangle_id", hits.triangle_id.into_pyarray(py))?;
+        out.set_item("u", hits.u.into_pyarray(py))?;
+        out.set_item("v", hits.v.into_pyarray(py))?;
+        out.set_item("normal", hits.normal.into_pyarray(py).reshape([n, 3])?)?;
+        Ok(out)
+    }
+
+    /// Whether each ray hits anything, as a bool array.
+    #[pyo3(signature = (origins, directions, tmin=0.0, tmax=f64::INFINITY, threads=None))]
+    fn occluded<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        tmin: f64,
+        tmax: f64,
+        threads: Option<i64>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let scene = self.current()?;
+        let (o, d) = (
+            Coords::of("origins", origins)?,
+            Coords::of("directions", directions)?,
+        );
+        let rays = Rays::new(o.slice()?, d.slice()?, tmin, tmax).map_err(query_error)?;
+        let blocked = run(py, rays.len(), threads_arg(threads)?, |options| {
+            scene.occluded(&rays, options)
+        })?;
+        Ok(blocked.into_pyarray(py).into_any())
+    }
+
+    /// How many triangles each ray hits, as a uint32 array.
+    #[pyo3(signature = (origins, directions, tmin=0.0, tmax=f64::INFINITY, threads=None))]
+    fn count_intersections<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        tmin: f64,
+        tmax: f64,
+        threads: Option<i64>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let scene = self.current()?;
+        let (o, d) = (
+            Coords::of("origins", origins)?,
+            Coords::of("directions", directions)?,
+        );
+        let rays = Rays::new(o.slice()?, d.slice()?, tmin, tmax).map_err(query_error)?;
+        let counts = run(py, rays.len(), threads_arg(threads)?, |options| {
+            scene.count_intersections(&rays, options)
+        })?;
+        Ok(counts.into_pyarray(py).into_any())
+    }
+
+    /// Every hit of each ray, sorted by t, as a dict of flat arrays with
+    /// per-ray offsets: offsets, t, mesh_id, triangle_id, u, v.
+    #[pyo3(signature = (origins, directions, tmin=0.0, tmax=f64::INFINITY, threads=None))]
+    fn all_intersections<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        tmin: f64,
+        tmax: f64,
+        threads: Option<i64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let scene = self.current()?;
+        let (o, d) = (
+            Coords::of("origins", origins)?,
+            Coords::of("directions", directions)?,
+        );
+        let rays = Rays::new(o.slice()?, d.slice()?, tmin, tmax).map_err(query_error)?;
+        let all = run(py, rays.len(), threads_arg(threads)?, |options| {
+            scene.all_intersections(&rays, options)
+        })?;
+        let out = PyDict::new(py);
+        out.set_item("offsets", all.offsets.into_pyarray(py))?;
+        out.set_item("t", all.t.into_pyarray(py))?;
+        out.set_item("mesh_id", all.mesh_id.into_pyarray(py))?;
+        out.set_item("triangle_id", all.triangle_id.into_pyarray(py))?;
+        out.set_item("u", all.u.into_pyarray(py))?;
+        out.set_item("v", all.v.into_pyarray(py))?;
+        Ok(out)
+    }
+
+    /// Whether each point is inside a (closed) mesh, as a bool array.
+    #[pyo3(signature = (points, threads=None))]
+    fn contains<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        threads: Option<i64>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let scene = self.current()?;
+        let p = Coords::of("points", points)?;
+        let p = p.slice()?;
+        let inside = run(py, p.len() / 3, threads_arg(threads)?, |options| {
+            scene.contains(p, options)
+        })?;
+        Ok(inside.into_pyarray(py).into_any())
+    }
+}
+
+impl RayScene {
+    /// [`current`](Self::current) without the GIL (inside `detach`).
+    fn current_unlocked(&self) -> Result<Arc<Scene>, PyErr> {
+        self.scene
+            .read()
+            .map(|s| Arc::clone(&s))
+            .map_err(|_| poisoned())
+    }
+}
+
+fn poisoned() -> PyErr {
+    PyRuntimeError::new_err("the ray scene was poisoned by a failed build")
+}
+
+fn query_error(e: QueryError) -> PyErr {
+    match e {
+        QueryError::Cancelled => PyKeyboardInterrupt::new_err("the query was cancelled"),
+        other => PyValueError::new_err(other.to_string()),
+    }
+}
+
+fn threads_arg(threads: Option<i64>) -> PyResult<Option<usize>> {
+    match threads {
+        None => Ok(None),
+        Some(n) if (1..=i64::from(limits::MAX_THREADS)).contains(&n) => Ok(Some(n as usize)),
+        Some(n) => Err(PyValueError::new_err(format!(
+            "threads: must be between 1 and {}, got {n}",
+            limits::MAX_THREADS
+        ))),
+    }
+}
+
+/// An (N, 3) coordinate array: float64 read in place, float32 converted.
+enum Coords<'py> {
+    Borrowed(PyReadonlyArray2<'py, f64>),
+    Converted(Vec<f64>),
+}
+
+impl<'py> Coords<'py> {
+    fn of(name: &'static str, obj: &Bound<'py, PyAny>) -> PyResult<Self> {
+        let shape_error = |shape: &[usize]| {
+            PyValueError::new_err(format!("{name}: must have shape (N, 3), got {shape:?}"))
+        };
+        if let Ok(a) = obj.cast::<PyArray2<f64>>() {
+            if a.shape()[1] != 3 {
+                return Err(shape_error(a.shape()));
+            }
+            let a = a
+                .try_readonly()
+                .map_err(|e| PyValueError::new_err(format!("{name}: {e}")))?;
+            return Ok(Coords::Borrowed(a));
+        }
+        if let Ok(a) = obj.cast::<PyArray2<f32>>() {
+            if a.shape()[1] != 3 {
+                return Err(shape_error(a.shape()));
+            }
+            let a = a
+                .try_readonly()
+                .map_err(|e| PyValueError::new_err(format!("{name}: {e}")))?;
+            return Ok(Coords::Converted(
+                a.as_array().iter().map(|&x| f64::from(x)).collect(),
+            ));
+        }
+        Err(PyValueError::new_err(format!(
+            "{name}: must be an (N, 3) float64 or float32 NumPy array"
+        )))
+    }
+
+    fn slice(&self) -> PyResult<&[f64]> {
+        match self {
+            Coords::Borrowed(a) => a.as_slice().map_err(|_| {
+                PyValueError::new_err("coordinates must be C-contiguous (np.ascontiguousarray)")
+            }),
+            Coords::Converted(v) => Ok(v),
+        }
+    }
+}
+
+/// Faces as an (F, 3) int64 array, every index in 0..vertex_count.
+fn face_indices(faces: &Bound<'_, PyAny>, vertex_count: usize) -> PyResult<Vec<u32>> {
+    let a = faces
+        .cast::<PyArray2<i64>>()
+        .map_err(|_| PyValueError::new_err("faces: must be an (F, 3) integer NumPy array"))?;
+    if a.shape()[1] != 3 {
+        return Err(PyValueError::new_err(format!(
+            "faces: must have shape (F, 3), got {:?}",
+            a.shape()
+        )));
+    }
+    let a = a
+        .try_readonly()
+        .map_err(|e| PyValueError::new_err(format!("faces: {e}")))?;
+    let mut out = Vec::with_capacity(a.len());
+    for (i, &index) in a.as_array().iter().enumerate() {
+        if index < 0 || index as u64 >= vertex_count as u64 {
+            return Err(PyValueError::new_err(format!(
+                "faces: row {} refers to vertex {index}, but there are {vertex_count} vertices",
+                i / 3
+            )));
+        }
+        out.push(index as u32);
+    }
+    Ok(out)
+}
+
+/// A (4, 4) float64 matrix, row by row as NumPy holds it.
+fn matrix(obj: &Bound<'_, PyAny>) -> PyResult<DMat4> {
+    let bad = || PyValueError::new_err("transform: must be a (4, 4) float64 NumPy array");
+    let a = obj.cast::<PyArray2<f64>>().map_err(|_| bad())?;
+    if a.shape() != [4, 4] {
+        return Err(bad());
+    }
+    let a = a.try_readonly().map_err(|_| bad())?;
+    let rows: Vec<f64> = a.as_array().iter().copied().collect();
+    let mut cols = [0.0; 16];
+    cols.copy_from_slice(&rows);
+    Ok(DMat4::from_cols_array(&cols).transpose())
+}
+
+/// Runs `job` (a query over `count` rays or points): a small one on this
+/// thread without the GIL; a large one on a thread of its own while this
+/// one waits without the GIL, taking it every 50 ms to check for signals
+/// (a KeyboardInterrupt raises the cancel flag, waits for the query to
+/// stop, and is raised here).
+fn run<T: Send>(
+    py: Python<'_>,
+    count: usize,
+    threads: Option<usize>,
+    job: impl FnOnce(&QueryOptions) -> Result<T, QueryError> + Send,
+) -> PyResult<T> {
+    if count <= SMALL {
+        let options = QueryOptions {
+            threads,
+            cancel: None,
+        };
+        return py.detach(|| job(&options)).map_err(query_error);
+    }
+    let cancel = AtomicBool::new(false);
+    std::thread::scope(|s| {
+        let (send, receive) = mpsc::channel();
+        let flag = &cancel;
+        s.spawn(move || {
+            let options = QueryOptions {
+                threads,
+                cancel: Some(flag),
+            };
+            let _ = send.send(job(&options));
+        });
+        // Waited on without the GIL, which needs a Sync handle.
+        let receive = Mutex::new(receive);
+        loop {
+            let waited = py.detach(|| match receive.lock() {
+                Ok(r) => r.recv_timeout(Duration::from_millis(50)),
+                Err(_) => Err(mpsc::RecvTimeoutError::Disconnected),
+            });
+            match waited {
+                Ok(out) => return out.map_err(query_error),
+                Err(mpsc::RecvTimeoutError::Disconnected) => {
+                    return Err(PyRuntimeError::new_err("the query thread failed"));
+                }
+                Err(mpsc::RecvTimeoutError::Timeout) => {}
+            }
+            if let Err(e) = py.check_signals() {
+                cancel.store(true, Ordering::Relaxed);
+                let _ = py.detach(|| receive.lock().ok()?.recv().ok());
+                return Err(e);
+            }
+        }
+    })
+}

@@ -1,0 +1,306 @@
+"""prism.RayScene: every query against brute force on small meshes, every
+class of bad argument, the GIL released during a query, Ctrl-C stopping one."""
+
+import _thread
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import prism
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def icosphere(levels=2, jitter=0.0, seed=0):
+    """A closed, outward-wound icosphere (radius 1, each vertex's radius
+    scaled by 1 +- jitter)."""
+    t = (1 + 5 ** 0.5) / 2
+    v = [[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
+         [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]]
+    v = [list(np.asarray(p, float) / np.linalg.norm(p)) for p in v]
+    f = [[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
+         [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
+         [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]]
+    for _ in range(levels):
+        mid = {}
+
+        def m(a, b):
+            key = (min(a, b), max(a, b))
+            if key not in mid:
+                p = (np.asarray(v[a]) + np.asarray(v[b])) / 2
+                v.append(list(p / np.linalg.norm(p)))
+                mid[key] = len(v) - 1
+            return mid[key]
+
+        nf = []
+        for a, b, c in f:
+            ab, bc, ca = m(a, b), m(b, c), m(c, a)
+            nf += [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
+        f = nf
+    v = np.asarray(v)
+    rng = np.random.default_rng(seed)
+    v = v * rng.uniform(1 - jitter, 1 + jitter, size=(len(v), 1))
+    return v, np.asarray(f, dtype=np.int64)
+
+
+def random_soup(n, seed):
+    rng = np.random.default_rng(seed)
+    centres = rng.uniform(-1, 1, size=(n, 1, 3))
+    v = (centres + 0.3 * rng.normal(size=(n, 3, 3))).reshape(-1, 3)
+    return v, np.arange(3 * n, dtype=np.int64).reshape(n, 3)
+
+
+def brute(v, f, o, d, tmin=0.0, tmax=np.inf):
+    """Every (t, triangle, u, v) of each ray by Moller-Trumbore over every
+    triangle, in float64 (rays near an edge differ from the watertight test
+    only in the last bits)."""
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    e1, e2 = b - a, c - a
+    out = []
+    for oi, di in zip(o, d):
+        p = np.cross(di, e2)
+        det = np.einsum("ij,ij->i", e1, p)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / det
+            s = oi - a
+            u = np.einsum("ij,ij->i", s, p) * inv
+            q = np.cross(s, e1)
+            w = (q @ di) * inv
+            t = np.einsum("ij,ij->i", e2, q) * inv
+        ok = (det != 0) & (u >= 0) & (w >= 0) & (u + w <= 1) & (t > tmin) & (t < tmax)
+        idx = np.nonzero(ok)[0]
+        order = np.argsort(t[idx], kind="stable")
+        out.append([(t[i], i, u[i], w[i]) for i in idx[order]])
+    return out
+
+
+def rays(n, seed):
+    rng = np.random.default_rng(seed)
+    o = rng.uniform(-2, 2, size=(n, 3))
+    d = rng.normal(size=(n, 3))
+    return o, d
+
+
+def test_queries_equal_brute_force():
+    v, f = random_soup(200, 1)
+    scene = prism.RayScene(v, f)
+    o, d = rays(600, 2)
+    for tmin, tmax in [(0.0, np.inf), (0.3, 1.5)]:
+        ref = brute(v, f, o, d, tmin, tmax)
+        hits = scene.intersect(o, d, tmin=tmin, tmax=tmax, threads=2)
+        assert set(hits) == {"t", "mesh_id", "triangle_id", "u", "v", "normal"}
+        assert hits["t"].dtype == np.float64 and hits["triangle_id"].dtype == np.int64
+        assert hits["normal"].shape == (600, 3)
+        occluded = scene.occluded(o, d, tmin=tmin, tmax=tmax)
+        counts = scene.count_intersections(o, d, tmin=tmin, tmax=tmax)
+        allx = scene.all_intersections(o, d, tmin=tmin, tmax=tmax)
+        assert allx["offsets"].shape == (601,)
+        hit = 0
+        for k, r in enumerate(ref):
+            assert occluded[k] == bool(r)
+            assert counts[k] == len(r)
+            s, e = allx["offsets"][k], allx["offsets"][k + 1]
+            assert list(allx["triangle_id"][s:e]) == [x[1] for x in r]
+            np.testing.assert_allclose(allx["t"][s:e], [x[0] for x in r], rtol=1e-12)
+            if not r:
+                assert hits["triangle_id"][k] == -1 and hits["mesh_id"][k] == -1
+                assert hits["t"][k] == np.inf
+                continue
+            hit += 1
+            t, tri, u, w = r[0]
+            assert hits["triangle_id"][k] == tri and hits["mesh_id"][k] == 0
+            assert hits["t"][k] == pytest.approx(t, rel=1e-12)
+            assert hits["u"][k] == pytest.approx(u, abs=1e-9)
+            assert hits["v"][k] == pytest.approx(w, abs=1e-9)
+            a, b, c = v[f[tri]]
+            n = np.cross(b - a, c - a)
+            np.testing.assert_allclose(hits["normal"][k], n / np.linalg.norm(n), atol=1e-12)
+        assert hit > 50
+
+
+def test_meshes_ids_and_transforms():
+    v, f = random_soup(100, 3)
+    m = np.array([[0, -2, 0, 0.5], [1, 0, 0, 0.1], [0, 0, 1.5, -0.2], [0, 0, 0, 1]], float)
+    moved = v @ m[:3, :3].T + m[:3, 3]
+    a = prism.RayScene()
+    assert a.add_mesh(v, f) == 0
+    assert a.add_mesh(v, f, transform=m) == 1
+    b = prism.RayScene()
+    b.add_mesh(v, f)
+    b.add_mesh(moved, f)
+    assert a.mesh_count == 2 and a.triangle_count == 200
+    assert a.memory_per_triangle > 0
+    o, d = rays(500, 4)
+    ha, hb = a.intersect(o, d), b.intersect(o, d)
+    np.testing.assert_array_equal(ha["mesh_id"], hb["mesh_id"])
+    np.testing.assert_array_equal(ha["triangle_id"], hb["triangle_id"])
+    np.testing.assert_allclose(ha["t"], hb["t"], rtol=1e-9)
+    np.testing.assert_allclose(ha["normal"], hb["normal"], atol=1e-9)
+    assert (ha["mesh_id"] == 1).sum() > 20
+
+
+def test_contains_and_watertightness():
+    v, f = icosphere(3, jitter=0.1, seed=5)
+    scene = prism.RayScene(v, f)
+    assert scene.is_closed(0)
+    rng = np.random.default_rng(6)
+    inside = rng.normal(size=(2000, 3))
+    inside *= (rng.uniform(0, 0.5, size=(2000, 1)) / np.linalg.norm(inside, axis=1, keepdims=True))
+    assert scene.contains(inside).all()
+    assert not scene.contains(3 * inside / np.linalg.norm(inside, axis=1, keepdims=True)).any()
+    # Rays from inside at random directions, at vertices and at edges: none escapes.
+    targets = np.concatenate([inside + rng.normal(size=inside.shape), v[f[:, 0]][:2000 // 2].repeat(2, 0),
+                              (v[f[:, 0]] + v[f[:, 1]])[:1000].repeat(2, 0) / 2])
+    origins = np.concatenate([inside] * 3)
+    hits = scene.intersect(origins, targets - origins)
+    assert (hits["triangle_id"] >= 0).all()
+    assert scene.occluded(origins, targets - origins).all()
+    # Points a trillionth inside and outside the faces along their normals.
+    a, b, c = (v[f[:, i]] for i in range(3))
+    n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    centre = (a + b + c) / 3
+    assert scene.contains(centre - 1e-12 * n).all()
+    assert not scene.contains(centre + 1e-12 * n).any()
+
+
+def test_float32_and_noncontiguous_inputs():
+    v, f = icosphere(1)
+    o, d = rays(300, 7)
+    ref = prism.RayScene(v.astype(np.float32).astype(np.float64), f).intersect(o, d)
+    got = prism.RayScene(v.astype(np.float32), f.astype(np.int32)).intersect(o, d)
+    np.testing.assert_array_equal(ref["t"], got["t"])
+    wide = np.zeros((300, 6))
+    wide[:, ::2] = o
+    strided = prism.RayScene(v, f).intersect(wide[:, ::2], d.astype(np.float32))
+    plain = prism.RayScene(v, f).intersect(o, d.astype(np.float32).astype(np.float64))
+    np.testing.assert_array_equal(strided["t"], plain["t"])
+    assert prism.RayScene(v, f).intersect(o.tolist(), d.tolist())["t"].shape == (300,)
+
+
+def test_from_file_reads_a_model():
+    scene = prism.RayScene.from_file(ROOT / "scenes" / "models" / "icosphere.ply")
+    assert scene.triangle_count > 0 and scene.mesh_count == 1
+    hits = scene.intersect(np.zeros((1, 3)) + [0, 0, 10], [[0, 0, -1]])
+    assert hits["triangle_id"][0] >= 0
+    with pytest.raises(ValueError, match="missing.obj"):
+        prism.RayScene.from_file(ROOT / "scenes" / "models" / "missing.obj")
+
+
+def test_threads_give_the_same_answers():
+    v, f = random_soup(300, 8)
+    scene = prism.RayScene(v, f)
+    o, d = rays(20000, 9)
+    one = scene.intersect(o, d, threads=1)
+    for n in (2, 3):
+        other = scene.intersect(o, d, threads=n)
+        for key in one:
+            np.testing.assert_array_equal(one[key], other[key])
+        np.testing.assert_array_equal(scene.count_intersections(o, d, threads=1),
+                                      scene.count_intersections(o, d, threads=n))
+
+
+BAD = [
+    # (what, call, argument named)
+    ("vertices 2 columns", lambda s, v, f, o, d: prism.RayScene(v[:, :2], f), "vertices"),
+    ("vertices 1-D", lambda s, v, f, o, d: prism.RayScene(v.ravel(), f), "vertices"),
+    ("vertices complex", lambda s, v, f, o, d: prism.RayScene(v.astype(complex), f), "vertices"),
+    ("vertices strings", lambda s, v, f, o, d: prism.RayScene(v.astype(str), f), "vertices"),
+    ("vertices bool", lambda s, v, f, o, d: prism.RayScene(v > 0, f), "vertices"),
+    ("vertices NaN", lambda s, v, f, o, d: prism.RayScene(np.where(v > 0.9, np.nan, v), f), "vertices"),
+    ("vertices inf", lambda s, v, f, o, d: prism.RayScene(np.where(v > 0.9, np.inf, v), f), "vertices"),
+    ("vertices empty", lambda s, v, f, o, d: prism.RayScene(v[:0], f), "vertices"),
+    ("faces float", lambda s, v, f, o, d: prism.RayScene(v, f.astype(float)), "faces"),
+    ("faces shape", lambda s, v, f, o, d: prism.RayScene(v, f[:, :2]), "faces"),
+    ("faces empty", lambda s, v, f, o, d: prism.RayScene(v, f[:0]), "faces"),
+    ("faces negative", lambda s, v, f, o, d: prism.RayScene(v, f - 1), "faces"),
+    ("faces past the end", lambda s, v, f, o, d: prism.RayScene(v, f + len(v)), "faces"),
+    ("faces uint64 huge", lambda s, v, f, o, d: prism.RayScene(v, f.astype(np.uint64) + 2**63), "faces"),
+    ("transform shape", lambda s, v, f, o, d: s.add_mesh(v, f, np.eye(3)), "transform"),
+    ("transform singular", lambda s, v, f, o, d: s.add_mesh(v, f, np.zeros((4, 4))), "transform"),
+    ("transform projective", lambda s, v, f, o, d: s.add_mesh(v, f, np.eye(4) + np.eye(4)[::-1]), "transform"),
+    ("origins shape", lambda s, v, f, o, d: s.intersect(o[:, :2], d), "origins"),
+    ("origins NaN", lambda s, v, f, o, d: s.intersect(o * np.nan, d), "origins"),
+    ("origins empty", lambda s, v, f, o, d: s.occluded(o[:0], d[:0]), "origins"),
+    ("origins object", lambda s, v, f, o, d: s.intersect(o.astype(object), d), "origins"),
+    ("directions inf", lambda s, v, f, o, d: s.count_intersections(o, d * np.inf), "directions"),
+    ("directions zero", lambda s, v, f, o, d: s.intersect(o, d * 0), "directions"),
+    ("directions count", lambda s, v, f, o, d: s.all_intersections(o, d[:-1]), "directions"),
+    ("tmin NaN", lambda s, v, f, o, d: s.intersect(o, d, tmin=np.nan), "tmin"),
+    ("tmin text", lambda s, v, f, o, d: s.intersect(o, d, tmin="a"), "tmin"),
+    ("tmax below tmin", lambda s, v, f, o, d: s.intersect(o, d, tmin=2, tmax=1), "tmax"),
+    ("threads zero", lambda s, v, f, o, d: s.intersect(o, d, threads=0), "threads"),
+    ("threads huge", lambda s, v, f, o, d: s.contains(o, threads=10**6), "threads"),
+    ("threads text", lambda s, v, f, o, d: s.occluded(o, d, threads="2"), "threads"),
+    ("points NaN", lambda s, v, f, o, d: s.contains(o * np.nan), "points"),
+    ("points empty", lambda s, v, f, o, d: s.contains(o[:0]), "points"),
+    ("contains open mesh", lambda s, v, f, o, d: prism.RayScene(v, f[1:]).contains(o), "contains"),
+]
+
+
+@pytest.mark.parametrize("what,call,name", BAD, ids=[b[0] for b in BAD])
+def test_bad_arguments_raise_value_error_naming_them(what, call, name):
+    v, f = icosphere(1)
+    scene = prism.RayScene(v, f)
+    o, d = rays(10, 10)
+    with pytest.raises(ValueError, match=name):
+        call(scene, v, f, o, d)
+    # The scene still answers.
+    assert scene.intersect(o, d)["t"].shape == (10,)
+
+
+def long_query():
+    """A scene and rays that take seconds to count: 3000 stacked squares,
+    every ray through all of them."""
+    n = 3000
+    z = np.linspace(0, 1, n)
+    quad = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float)
+    v = np.concatenate([np.column_stack([quad, np.full(4, zi)]) for zi in z])
+    base = np.arange(n)[:, None] * 4
+    f = np.concatenate([base + [0, 1, 2], base + [0, 2, 3]]).astype(np.int64)
+    rng = np.random.default_rng(11)
+    o = np.column_stack([rng.uniform(-0.9, 0.9, (400000, 2)), np.full(400000, -1.0)])
+    d = np.tile([0.0, 0.0, 1.0], (400000, 1))
+    return prism.RayScene(v, f), o, d
+
+
+def test_the_gil_is_released_during_a_query():
+    scene, o, d = long_query()
+    ticks = []
+    stop = threading.Event()
+
+    def tick():
+        while not stop.is_set():
+            ticks.append(time.perf_counter())
+            time.sleep(0.005)
+
+    ticker = threading.Thread(target=tick)
+    start = time.perf_counter()
+    ticker.start()
+    counts = scene.count_intersections(o[:30000], d[:30000], threads=1)
+    end = time.perf_counter()
+    stop.set()
+    ticker.join()
+    assert (counts == 3000).all()
+    during = [t for t in ticks if start < t < end]
+    # At least one tick every 50 ms on average while the query ran.
+    assert end - start > 0.1, "the query was too short to tell"
+    assert len(during) >= (end - start) / 0.05, (len(during), end - start)
+
+
+def test_ctrl_c_stops_a_long_query():
+    scene, o, d = long_query()
+    timer = threading.Timer(0.3, _thread.interrupt_main)
+    start = time.perf_counter()
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        scene.count_intersections(o, d, threads=1)
+    elapsed = time.perf_counter() - start
+    timer.cancel()
+    # The whole query takes far longer (about 1.2e9 triangle tests).
+    assert elapsed < 3.0, elapsed
+    small = scene.count_intersections(o[:10], d[:10])
+    assert (small == 3000).all()

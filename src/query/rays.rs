@@ -1,0 +1,207 @@
+//! A query's input (a batch of rays, checked once), its options (threads,
+//! cancellation) and its outputs as flat arrays, one entry per ray.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use glam::DVec3;
+
+use super::QueryError;
+use crate::limits::{MAX_COORDINATE, MAX_THREADS, MIN_LENGTH};
+
+/// A batch of rays: `origins` and `directions` hold `x, y, z` of each ray
+/// in turn (a C-contiguous N×3 array), every ray searched for hits with t
+/// in (`t_min`, `t_max`). Directions need not be unit; t is measured in
+/// their lengths (the point of a hit is `origin + t·direction`).
+#[derive(Clone, Copy, Debug)]
+pub struct Rays<'a> {
+    origins: &'a [f64],
+    directions: &'a [f64],
+    /// Hits at t ≤ t_min are not seen.
+    pub t_min: f64,
+    /// Hits at t ≥ t_max are not seen.
+    pub t_max: f64,
+}
+
+impl<'a> Rays<'a> {
+    /// Checks the batch: the same whole number of rays (at least one) in
+    /// both slices, coordinates finite and within ±1e30 (the scene's
+    /// bound), no direction shorter than 1e-30 in every component, t_min
+    /// below t_max and neither NaN (t_min may be −∞, t_max +∞).
+    pub fn new(
+        origins: &'a [f64],
+        directions: &'a [f64],
+        t_min: f64,
+        t_max: f64,
+    ) -> Result<Self, QueryError> {
+        let n = rows("origins", origins)?;
+        if rows("directions", directions)? != n {
+            return Err(QueryError::invalid(
+                "directions",
+                format!("{} rays, but origins has {n}", directions.len() / 3),
+            ));
+        }
+        finite_rows("origins", origins)?;
+        finite_rows("directions", directions)?;
+        if let Some(k) = directions
+            .chunks_exact(3)
+            .position(|d| d.iter().all(|c| c.abs() < MIN_LENGTH))
+        {
+            return Err(QueryError::invalid(
+                "directions",
+                format!("row {k} is zero (every component below {MIN_LENGTH:e})"),
+            ));
+        }
+        if t_min.is_nan() {
+            return Err(QueryError::invalid("tmin", "is NaN"));
+        }
+        if t_max.is_nan() {
+            return Err(QueryError::invalid("tmax", "is NaN"));
+        }
+        if t_min >= t_max {
+            return Err(QueryError::invalid(
+                "tmax",
+                format!("must be above tmin ({t_min}), got {t_max}"),
+            ));
+        }
+        Ok(Rays {
+            origins,
+            directions,
+            t_min,
+            t_max,
+        })
+    }
+
+    /// Number of rays.
+    pub fn len(&self) -> usize {
+        self.origins.len() / 3
+    }
+
+    /// Always false: a batch holds at least one ray.
+    pub fn is_empty(&self) -> bool {
+        self.origins.is_empty()
+    }
+
+    /// Ray `k` as (origin, direction).
+    #[inline]
+    pub fn ray(&self, k: usize) -> (DVec3, DVec3) {
+        (
+            DVec3::from_slice(&self.origins[3 * k..]),
+            DVec3::from_slice(&self.directions[3 * k..]),
+        )
+    }
+}
+
+/// Checks points (`contains`' argument, as `Rays::new` checks origins) and
+/// returns how many there are.
+pub(crate) fn check_points(name: &'static str, points: &[f64]) -> Result<usize, QueryError> {
+    let n = rows(name, points)?;
+    finite_rows(name, points)?;
+    Ok(n)
+}
+
+fn rows(name: &'static str, values: &[f64]) -> Result<usize, QueryError> {
+    if values.is_empty() {
+        return Err(QueryError::invalid(name, "is empty"));
+    }
+    if !values.len().is_multiple_of(3) {
+        return Err(QueryError::invalid(
+            name,
+            format!("{} values are not rows of 3 (x, y, z)", values.len()),
+        ));
+    }
+    Ok(values.len() / 3)
+}
+
+fn finite_rows(name: &'static str, values: &[f64]) -> Result<(), QueryError> {
+    match values
+        .iter()
+        .position(|v| !v.is_finite() || v.abs() > MAX_COORDINATE)
+    {
+        None => Ok(()),
+        Some(i) => Err(QueryError::invalid(
+            name,
+            format!(
+                "row {} holds {}, not a finite number within ±{MAX_COORDINATE:e}",
+                i / 3,
+                values[i]
+            ),
+        )),
+    }
+}
+
+/// How a query runs.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct QueryOptions<'a> {
+    /// Worker threads (1 to 1024); `None`: rayon's global pool (one per
+    /// core). The answers are the same for any count.
+    pub threads: Option<usize>,
+    /// Raised by another thread to stop the query, which then returns
+    /// [`QueryError::Cancelled`] (checked between batches of rays).
+    pub cancel: Option<&'a AtomicBool>,
+}
+
+impl QueryOptions<'_> {
+    pub(crate) fn cancelled(&self) -> bool {
+        self.cancel.is_some_and(|c| c.load(Ordering::Relaxed))
+    }
+
+    /// Runs `job` on a pool of the chosen size.
+    pub(crate) fn run<T: Send>(
+        &self,
+        job: impl FnOnce() -> Result<T, QueryError> + Send,
+    ) -> Result<T, QueryError> {
+        match self.threads {
+            None => job(),
+            Some(n) if n == 0 || n > MAX_THREADS as usize => Err(QueryError::invalid(
+                "threads",
+                format!("must be between 1 and {MAX_THREADS}, got {n}"),
+            )),
+            Some(n) => rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .map_err(|e| QueryError::invalid("threads", e.to_string()))?
+                .install(job),
+        }
+    }
+}
+
+/// The nearest hit of each ray, as flat arrays indexed by ray; a ray that
+/// hits nothing has t = +∞, mesh and triangle −1, u = v = 0 and a zero
+/// normal.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Hits {
+    /// Ray parameter of the hit.
+    pub t: Vec<f64>,
+    /// Id of the mesh hit (−1: none).
+    pub mesh_id: Vec<i64>,
+    /// Index of the triangle hit in its mesh's face list (−1: none).
+    pub triangle_id: Vec<i64>,
+    /// Barycentric weight of the triangle's second vertex: the hit is
+    /// (1 − u − v)·a + u·b + v·c.
+    pub u: Vec<f64>,
+    /// Barycentric weight of the third vertex.
+    pub v: Vec<f64>,
+    /// Unit geometric normal (right-hand rule of the face's vertex order,
+    /// through the mesh's transform), `x, y, z` per ray.
+    pub normal: Vec<f64>,
+}
+
+/// Every hit of each ray, sorted by t (ties by mesh id, then triangle),
+/// as flat arrays: ray k's hits are entries `offsets[k]..offsets[k + 1]`.
+/// A ray through an edge or vertex hits each triangle that holds it (the
+/// watertight test never misses them all), so it lists each.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Crossings {
+    /// N + 1 offsets into the other arrays.
+    pub offsets: Vec<i64>,
+    /// Ray parameter of each hit.
+    pub t: Vec<f64>,
+    /// Mesh id of each hit.
+    pub mesh_id: Vec<i64>,
+    /// Triangle index of each hit.
+    pub triangle_id: Vec<i64>,
+    /// Barycentric u of each hit (see [`Hits::u`]).
+    pub u: Vec<f64>,
+    /// Barycentric v of each hit.
+    pub v: Vec<f64>,
+}

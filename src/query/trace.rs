@@ -1,0 +1,358 @@
+//! The ray queries of [`RayScene`]: nearest hit, any hit, every hit. Rays
+//! are taken in groups of eight; a coherent group (nearly parallel rays
+//! from nearby origins: a camera's, a lidar's) goes through each mesh's
+//! tree as a packet, an incoherent one through a large mesh as a stream
+//! (each ray's next reads prefetched while the others step), otherwise ray
+//! by ray. Each path gives, to the bit, the hit the renderer's
+//! `Mesh::intersect` gives that ray alone, so the choice changes only the
+//! speed.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::QueryError;
+use super::rays::{Crossings, Hits, QueryOptions, Rays};
+use super::scene::RayScene;
+use crate::accel::PACKET;
+use crate::geometry::Aabb;
+use crate::geometry::cuboid::slab_interval;
+use crate::geometry::mesh::MeshHit;
+use crate::geometry::triangle::{WatertightRay, triangle_hit};
+
+/// Rays per task, and between checks of the cancel flag.
+const CHUNK: usize = 1024;
+
+/// A mesh whose tree and triangles take more than this goes through
+/// streams for incoherent rays (it no longer fits the cache, so hiding
+/// its misses pays; `Mesh::intersect_stream`).
+const STREAM_BYTES: usize = 8 << 20;
+
+/// The nearest hit of one ray so far.
+#[derive(Clone, Copy, Debug)]
+struct Nearest {
+    t: f64,
+    mesh: u32,
+    hit: Option<MeshHit>,
+}
+
+const MISS: Nearest = Nearest {
+    t: f64::INFINITY,
+    mesh: u32::MAX,
+    hit: None,
+};
+
+/// One hit of an all-hits query.
+#[derive(Clone, Copy, Debug)]
+struct Crossing {
+    t: f64,
+    mesh: u32,
+    triangle: u32,
+    barycentric: DVec3,
+}
+
+impl RayScene {
+    /// The nearest hit of each ray with t in (t_min, t_max): of triangles
+    /// hit at the same t, the one first in its mesh's face list, and of
+    /// meshes, the lowest id.
+    pub fn intersect(&self, rays: &Rays, options: &QueryOptions) -> Result<Hits, QueryError> {
+        let mut nearest = vec![MISS; rays.len()];
+        let scale = self.bounds().diagonal();
+        options.run(|| {
+            nearest
+                .par_chunks_mut(CHUNK)
+                .enumerate()
+                .try_for_each(|(c, out)| {
+                    if options.cancelled() {
+                        return Err(QueryError::Cancelled);
+                    }
+                    for (g, group) in out.chunks_mut(PACKET).enumerate() {
+                        self.nearest_group(rays, c * CHUNK + g * PACKET, group, scale);
+                    }
+                    Ok(())
+                })
+        })?;
+        let n = nearest.len();
+        let mut hits = Hits {
+            t: Vec::with_capacity(n),
+            mesh_id: Vec::with_capacity(n),
+            triangle_id: Vec::with_capacity(n),
+            u: Vec::with_capacity(n),
+            v: Vec::with_capacity(n),
+            normal: Vec::with_capacity(3 * n),
+        };
+        for near in &nearest {
+            match near.hit {
+                None => {
+                    hits.t.push(f64::INFINITY);
+                    hits.mesh_id.push(-1);
+                    hits.triangle_id.push(-1);
+                    hits.u.push(0.0);
+                    hits.v.push(0.0);
+                    hits.normal.extend([0.0; 3]);
+                }
+                Some(h) => {
+                    let placed = &self.meshes[near.mesh as usize];
+                    hits.t.push(h.t);
+                    hits.mesh_id.push(i64::from(near.mesh));
+                    hits.triangle_id.push(i64::from(h.triangle));
+                    hits.u.push(h.barycentric.y);
+                    hits.v.push(h.barycentric.z);
+                    hits.normal.extend(placed.world_normal(h.normal).to_array());
+                }
+            }
+        }
+        Ok(hits)
+    }
+
+    /// Whether each ray hits anything with t in (t_min, t_max).
+    pub fn occluded(&self, rays: &Rays, options: &QueryOptions) -> Result<Vec<bool>, QueryError> {
+        let mut blocked = vec![false; rays.len()];
+        let scale = self.bounds().diagonal();
+        options.run(|| {
+            blocked
+                .par_chunks_mut(CHUNK)
+                .enumerate()
+                .try_for_each(|(c, out)| {
+                    if options.cancelled() {
+                        return Err(QueryError::Cancelled);
+                    }
+                    for (g, group) in out.chunks_mut(PACKET).enumerate() {
+                        self.blocked_group(rays, c * CHUNK + g * PACKET, group, scale);
+                    }
+                    Ok(())
+                })
+        })?;
+        Ok(blocked)
+    }
+
+    /// How many triangles each ray hits with t in (t_min, t_max) (a ray
+    /// through an edge or vertex counts each triangle that holds it).
+    pub fn count_intersections(
+        &self,
+        rays: &Rays,
+        options: &QueryOptions,
+    ) -> Result<Vec<u32>, QueryError> {
+        let mut counts = vec![0u32; rays.len()];
+        options.run(|| {
+            counts
+                .par_chunks_mut(CHUNK)
+                .enumerate()
+                .try_for_each(|(c, out)| {
+                    if options.cancelled() {
+                        return Err(QueryError::Cancelled);
+                    }
+                    for (k, count) in out.iter_mut().enumerate() {
+                        let mut n = 0u32;
+                        self.crossings(rays, c * CHUNK + k, |_| n = n.saturating_add(1));
+                        *count = n;
+                    }
+                    Ok(())
+                })
+        })?;
+        Ok(counts)
+    }
+
+    /// Every hit of each ray with t in (t_min, t_max), sorted by t (ties
+    /// by mesh id, then triangle index).
+    pub fn all_intersections(
+        &self,
+        rays: &Rays,
+        options: &QueryOptions,
+    ) -> Result<Crossings, QueryError> {
+        let n = rays.len();
+        let parts: Vec<(Vec<u32>, Vec<Crossing>)> = options.run(|| {
+            (0..n.div_ceil(CHUNK))
+                .into_par_iter()
+                .map(|c| {
+                    if options.cancelled() {
+                        return Err(QueryError::Cancelled);
+                    }
+                    let mut counts = Vec::new();
+                    let mut all = Vec::new();
+                    for k in c * CHUNK..((c + 1) * CHUNK).min(n) {
+                        let start = all.len();
+                        self.crossings(rays, k, |x| all.push(x));
+                        all[start..].sort_by(|a: &Crossing, b: &Crossing| {
+                            a.t.total_cmp(&b.t)
+                                .then(a.mesh.cmp(&b.mesh))
+                                .then(a.triangle.cmp(&b.triangle))
+                        });
+                        counts.push((all.len() - start) as u32);
+                    }
+                    Ok((counts, all))
+                })
+                .collect()
+        })?;
+        let total = parts.iter().map(|p| p.1.len()).sum();
+        let mut out = Crossings {
+            offsets: Vec::with_capacity(n + 1),
+            t: Vec::with_capacity(total),
+            mesh_id: Vec::with_capacity(total),
+            triangle_id: Vec::with_capacity(total),
+            u: Vec::with_capacity(total),
+            v: Vec::with_capacity(total),
+        };
+        out.offsets.push(0);
+        let mut offset = 0i64;
+        for (counts, all) in parts {
+            for c in counts {
+                offset += i64::from(c);
+                out.offsets.push(offset);
+            }
+            for x in all {
+                out.t.push(x.t);
+                out.mesh_id.push(i64::from(x.mesh));
+                out.triangle_id.push(i64::from(x.triangle));
+                out.u.push(x.barycentric.y);
+                out.v.push(x.barycentric.z);
+            }
+        }
+        Ok(out)
+    }
+
+    /// The nearest hits of rays `first..first + out.len()` (at most
+    /// [`PACKET`]).
+    fn nearest_group(&self, rays: &Rays, first: usize, out: &mut [Nearest], scale: f64) {
+        let n = out.len();
+        let world: [(DVec3, DVec3); PACKET] =
+            std::array::from_fn(|k| rays.ray(first + k.min(n - 1)));
+        let coherent = coherent(&world[..n], scale);
+        for (id, placed) in self.meshes.iter().enumerate() {
+            let mut reach = [f64::NEG_INFINITY; PACKET];
+            let mut live = 0;
+            for k in 0..n {
+                let limit = out[k].t.min(rays.t_max);
+                if meets(&placed.bounds, world[k].0, world[k].1, rays.t_min, limit) {
+                    reach[k] = limit;
+                    live += 1;
+                }
+            }
+            if live == 0 {
+                continue;
+            }
+            let local: [(DVec3, DVec3); PACKET] =
+                std::array::from_fn(|k| placed.local(world[k].0, world[k].1));
+            let mut found = [None; PACKET];
+            let mesh = &placed.mesh;
+            if coherent && live > 1 {
+                mesh.intersect_packet(&local[..n], rays.t_min, &reach[..n], &mut found[..n]);
+            } else if live > 1 && mesh.memory_bytes() > STREAM_BYTES {
+                mesh.intersect_stream(&local[..n], rays.t_min, &reach[..n], &mut found[..n]);
+            } else {
+                for k in (0..n).filter(|&k| reach[k] > f64::NEG_INFINITY) {
+                    found[k] = mesh.intersect(local[k].0, local[k].1, rays.t_min, reach[k]);
+                }
+            }
+            for (near, hit) in out.iter_mut().zip(found) {
+                // Strictly nearer than what is held (each search stopped
+                // short of it), so a lower id keeps a tie.
+                if let Some(h) = hit {
+                    *near = Nearest {
+                        t: h.t,
+                        mesh: id as u32,
+                        hit: Some(h),
+                    };
+                }
+            }
+        }
+    }
+
+    /// Whether rays `first..first + out.len()` are blocked.
+    fn blocked_group(&self, rays: &Rays, first: usize, out: &mut [bool], scale: f64) {
+        let n = out.len();
+        let world: [(DVec3, DVec3); PACKET] =
+            std::array::from_fn(|k| rays.ray(first + k.min(n - 1)));
+        let coherent = coherent(&world[..n], scale);
+        for placed in &self.meshes {
+            let mut reach = [f64::NEG_INFINITY; PACKET];
+            let mut live = 0;
+            for k in 0..n {
+                if !out[k]
+                    && meets(
+                        &placed.bounds,
+                        world[k].0,
+                        world[k].1,
+                        rays.t_min,
+                        rays.t_max,
+                    )
+                {
+                    reach[k] = rays.t_max;
+                    live += 1;
+                }
+            }
+            if live == 0 {
+                continue;
+            }
+            let local: [(DVec3, DVec3); PACKET] =
+                std::array::from_fn(|k| placed.local(world[k].0, world[k].1));
+            if coherent && live > 1 {
+                let mask = placed
+                    .mesh
+                    .any_hit_packet(&local[..n], rays.t_min, &reach[..n]);
+                for (k, b) in out.iter_mut().enumerate() {
+                    *b |= mask & (1 << k) != 0;
+                }
+            } else {
+                for k in (0..n).filter(|&k| reach[k] > f64::NEG_INFINITY) {
+                    out[k] = placed
+                        .mesh
+                        .any_hit(local[k].0, local[k].1, rays.t_min, reach[k]);
+                }
+            }
+        }
+    }
+
+    /// Calls `each` with every hit of ray `k`, mesh by mesh, in tree order.
+    fn crossings(&self, rays: &Rays, k: usize, mut each: impl FnMut(Crossing)) {
+        let (origin, direction) = rays.ray(k);
+        let (t_min, t_max) = (rays.t_min, rays.t_max);
+        for (id, placed) in self.meshes.iter().enumerate() {
+            if !meets(&placed.bounds, origin, direction, t_min, t_max) {
+                continue;
+            }
+            let (o, d) = placed.local(origin, direction);
+            let ray = WatertightRay::new(o, d);
+            placed.mesh.visit_triangles(
+                |b| meets(b, o, d, t_min, t_max),
+                |triangle, [a, b, c]| {
+                    if let Some(h) = triangle_hit(&ray, a, b, c, t_min, t_max) {
+                        each(Crossing {
+                            t: h.t,
+                            mesh: id as u32,
+                            triangle,
+                            barycentric: h.barycentric,
+                        });
+                    }
+                },
+            );
+        }
+    }
+}
+
+/// Whether the ray's stretch (t_min, t_max) may meet box `b`: the slab
+/// test on the box grown by a billionth of its size, so that rounding in
+/// the test never loses a triangle the watertight test would hit.
+#[inline]
+pub(crate) fn meets(b: &Aabb, origin: DVec3, direction: DVec3, t_min: f64, t_max: f64) -> bool {
+    let pad = DVec3::splat(
+        (b.max - b.min).max_element() * 1e-9
+            + b.min.abs().max(b.max.abs()).max_element() * 1e-12
+            + f64::MIN_POSITIVE,
+    );
+    slab_interval(origin, direction, b.min - pad, b.max + pad)
+        .is_some_and(|((enter, _), (exit, _))| enter <= t_max && exit >= t_min)
+}
+
+/// Whether a group of rays is worth tracing as a packet: three or more,
+/// within 8° of the first's direction, from origins within 2% of the
+/// scene's size of the first's (a camera's rays, a lidar's).
+fn coherent(rays: &[(DVec3, DVec3)], scale: f64) -> bool {
+    let Some(&(o0, d0)) = rays.first() else {
+        return false;
+    };
+    let d0 = d0.normalize();
+    rays.len() >= 3
+        && rays
+            .iter()
+            .all(|&(o, d)| d.normalize().dot(d0) > 0.99 && (o - o0).length() <= 0.02 * scale)
+}
