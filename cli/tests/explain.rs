@@ -217,3 +217,55 @@ radius = 10
     assert!(n.refracted.is_none() && n.reflected.is_some());
     assert!(adds_up(n));
 }
+
+/// The lecture's steps reach the command's JSON under the notes' names
+/// (the values are checked against the render in tests/lecture.rs), and
+/// its text names them too.
+#[test]
+fn the_command_lists_the_lectures_steps() {
+    let run = |scene: &str, pixel: &str, json: bool| {
+        let path = format!("{}/../scenes/{scene}", env!("CARGO_MANIFEST_DIR"));
+        let mut args = vec!["explain", &path, "--pixel", pixel];
+        if json {
+            args.push("--json");
+        }
+        let out = Command::new(env!("CARGO_BIN_EXE_prism"))
+            .args(&args)
+            .output()
+            .unwrap();
+        assert!(out.status.success());
+        String::from_utf8(out.stdout).unwrap()
+    };
+    // Inside the concave star: its polygon test, odd.
+    let json: serde_json::Value = serde_json::from_str(&run("star.toml", "330,140", true)).unwrap();
+    let test = &json["tree"]["intersection"];
+    assert_eq!(test["object"], "standing star");
+    assert_eq!(test["plane"]["verdict"], "front face");
+    assert_eq!(test["polygon"]["principal_axis"], "z");
+    assert_eq!(test["polygon"]["parity"], "odd");
+    assert_eq!(test["polygon"]["edges"].as_array().unwrap().len(), 10);
+    let crossings = test["polygon"]["crossings"].as_u64().unwrap();
+    assert_eq!(crossings % 2, 1);
+    let text = run("star.toml", "330,140", false);
+    assert!(
+        text.contains("principal axis z") && text.contains(&format!("crossings {crossings} (odd)")),
+        "{text}"
+    );
+    // The glass ball: its quadratic, and at the bubble, TIR.
+    let json: serde_json::Value =
+        serde_json::from_str(&run("nested-glass.toml", "210,140", true)).unwrap();
+    let ball = &json["tree"]["intersection"]["sphere"];
+    assert!(ball["discriminant"].as_f64().unwrap() > 0.0);
+    assert_eq!(ball["taken"], "t0");
+    let bubble = &json["tree"]["refracted"];
+    let snell = &bubble["refraction"];
+    assert_eq!(bubble["hit"]["object"], "air bubble");
+    assert_eq!(snell["total_internal_reflection"], true);
+    assert!((snell["critical_angle"].as_f64().unwrap() - 41.81).abs() < 0.01);
+    assert!((snell["theta_i"].as_f64().unwrap() - 59.5).abs() < 0.05);
+    let text = run("nested-glass.toml", "210,140", false);
+    assert!(
+        text.contains("critical angle 41.8") && text.contains("total internal reflection"),
+        "{text}"
+    );
+}

@@ -13,6 +13,7 @@ pub mod plane;
 pub mod polygon;
 pub mod span;
 pub mod sphere;
+pub mod steps;
 pub mod terminator;
 pub mod torus;
 pub mod triangle;

@@ -4,6 +4,7 @@ use glam::DVec3;
 
 use super::ShapeHit;
 use super::span::{Interval, Intervals, Surface};
+use super::steps::Steps;
 use crate::math::Ray;
 
 /// Below this |n·D| (cosine between the ray and the plane) the ray counts as
@@ -39,11 +40,26 @@ pub fn plane_hit(
     t_min: f64,
     t_max: f64,
 ) -> Option<PlaneHit> {
+    plane_hit_steps(normal, distance, ray, t_min, t_max, &mut ())
+}
+
+/// [`plane_hit`], telling `steps` n·d and t.
+#[inline(always)]
+pub fn plane_hit_steps<S: Steps>(
+    normal: DVec3,
+    distance: f64,
+    ray: &Ray,
+    t_min: f64,
+    t_max: f64,
+    steps: &mut S,
+) -> Option<PlaneHit> {
     let n_dot_d = normal.dot(ray.direction);
     if n_dot_d.abs() < PARALLEL_COSINE {
+        steps.plane(n_dot_d, None);
         return None;
     }
     let t = (distance - normal.dot(ray.origin)) / n_dot_d;
+    steps.plane(n_dot_d, Some(t));
     (t > t_min && t < t_max).then_some(PlaneHit {
         t,
         back_face: n_dot_d > 0.0,
@@ -111,7 +127,19 @@ impl Plane {
     /// Intersects `ray`; see [`plane_hit`].
     #[inline]
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
-        plane_hit(self.normal, self.distance, ray, t_min, t_max)
+        self.intersect_steps(ray, t_min, t_max, &mut ())
+    }
+
+    /// [`intersect`](Self::intersect), telling `steps` each step.
+    #[inline(always)]
+    pub fn intersect_steps<S: Steps>(
+        &self,
+        ray: &Ray,
+        t_min: f64,
+        t_max: f64,
+        steps: &mut S,
+    ) -> Option<ShapeHit> {
+        plane_hit_steps(self.normal, self.distance, ray, t_min, t_max, steps)
             .map(|h| ShapeHit::geometric(h.t, self.normal, !h.back_face))
     }
 }

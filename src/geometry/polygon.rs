@@ -5,7 +5,8 @@
 use glam::{DVec2, DVec3};
 use thiserror::Error;
 
-use super::plane::plane_hit;
+use super::plane::plane_hit_steps;
+use super::steps::{EdgeCase, Steps};
 use super::{Aabb, Plane, ShapeHit};
 use crate::math::Ray;
 
@@ -160,16 +161,40 @@ pub fn axis_crossing(a: DVec2, b: DVec2) -> f64 {
 /// negative. The half-open rule counts v = 0 as negative, so an outline
 /// passing exactly through a vertex on the axis crosses it once, not twice.
 pub fn crossing_count(point: DVec2, vertices: &[DVec2]) -> usize {
+    crossing_count_steps(point, vertices, &mut ())
+}
+
+/// [`crossing_count`], telling `steps` each translated edge, its case (in
+/// the notes' letters: x along the test axis, z across it) and the count.
+#[inline(always)]
+pub fn crossing_count_steps<S: Steps>(point: DVec2, vertices: &[DVec2], steps: &mut S) -> usize {
     let mut crossings = 0;
     let mut a = vertices[vertices.len() - 1] - point;
     for &vertex in vertices {
         let b = vertex - point;
         let (a_up, b_up) = (a.y > 0.0, b.y > 0.0);
-        if a_up != b_up && !(a.x < 0.0 && b.x < 0.0) && axis_crossing(a, b) > 0.0 {
-            crossings += 1;
+        if a_up == b_up {
+            steps.edge(
+                a,
+                b,
+                if a_up {
+                    EdgeCase::BothZPositive
+                } else {
+                    EdgeCase::BothZNegative
+                },
+            );
+        } else if a.x < 0.0 && b.x < 0.0 {
+            steps.edge(a, b, EdgeCase::BothXNegative);
+        } else {
+            let x_int = axis_crossing(a, b);
+            steps.edge(a, b, EdgeCase::Intersects { x_int });
+            if x_int > 0.0 {
+                crossings += 1;
+            }
         }
         a = b;
     }
+    steps.crossings(crossings);
     crossings
 }
 
@@ -256,9 +281,33 @@ impl Polygon {
     /// The plane hit, kept only if its projection lies inside the outline.
     #[inline]
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
-        let h = plane_hit(self.plane.normal, self.plane.distance, ray, t_min, t_max)?;
-        let p = project(ray.at(h.t), self.principal_axis);
-        point_in_polygon(p, &self.projected).then_some(ShapeHit::geometric(
+        self.intersect_steps(ray, t_min, t_max, &mut ())
+    }
+
+    /// [`intersect`](Self::intersect), telling `steps` each step: the
+    /// plane test, the projection along the principal axis, each edge and
+    /// the crossing count.
+    #[inline(always)]
+    pub fn intersect_steps<S: Steps>(
+        &self,
+        ray: &Ray,
+        t_min: f64,
+        t_max: f64,
+        steps: &mut S,
+    ) -> Option<ShapeHit> {
+        let h = plane_hit_steps(
+            self.plane.normal,
+            self.plane.distance,
+            ray,
+            t_min,
+            t_max,
+            steps,
+        )?;
+        let point = ray.at(h.t);
+        let p = project(point, self.principal_axis);
+        steps.projection(self.principal_axis, point, p);
+        // Jordan curve theorem: inside when the count is odd.
+        (crossing_count_steps(p, &self.projected, steps) % 2 == 1).then_some(ShapeHit::geometric(
             h.t,
             self.plane.normal,
             !h.back_face,

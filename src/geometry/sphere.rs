@@ -3,6 +3,7 @@
 use glam::DVec3;
 
 use super::span::{Intervals, Surface, interval};
+use super::steps::Steps;
 use super::{Aabb, ShapeHit};
 use crate::math::{Ray, Transform};
 
@@ -30,22 +31,43 @@ pub fn sphere_roots(
     center: DVec3,
     radius: f64,
 ) -> Option<(f64, f64)> {
+    sphere_roots_steps(origin, direction, center, radius, &mut ())
+}
+
+/// [`sphere_roots`], telling `steps` the quadratic's coefficients, its
+/// discriminant and the roots.
+#[inline(always)]
+pub fn sphere_roots_steps<S: Steps>(
+    origin: DVec3,
+    direction: DVec3,
+    center: DVec3,
+    radius: f64,
+    steps: &mut S,
+) -> Option<(f64, f64)> {
     let f = origin - center;
     let a = direction.length_squared();
     let b = f.dot(direction);
     let perpendicular = f - (b / a) * direction;
     let discriminant = a * (radius * radius - perpendicular.length_squared());
     if discriminant < 0.0 {
+        // c is not needed past here; told only (unused by `()`, and so
+        // not computed for it).
+        steps.quadratic(a, b, f.length_squared() - radius * radius, discriminant);
+        steps.roots(None);
         return None;
     }
     let c = f.length_squared() - radius * radius;
+    steps.quadratic(a, b, c, discriminant);
     let q = -(b + discriminant.sqrt().copysign(b));
     if q == 0.0 {
         // Tangent at the origin: b' = 0 and Δ = 0.
+        steps.roots(Some((0.0, 0.0)));
         return Some((0.0, 0.0));
     }
     let (t0, t1) = (q / a, c / q);
-    Some(if t0 <= t1 { (t0, t1) } else { (t1, t0) })
+    let roots = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
+    steps.roots(Some(roots));
+    Some(roots)
 }
 
 /// The nearest root of the ray (origin, direction) in (0, t_max), if it
@@ -109,9 +131,23 @@ impl Sphere {
     /// The nearest hit in (t_min, t_max), from outside or inside.
     #[inline]
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
-        let roots = sphere_roots(ray.origin, ray.direction, self.center, self.radius)?;
-        let t = nearest_root(roots, t_min, t_max)?;
-        Some(self.hit_at(ray, t))
+        self.intersect_steps(ray, t_min, t_max, &mut ())
+    }
+
+    /// [`intersect`](Self::intersect), telling `steps` the quadratic, its
+    /// roots and the root taken.
+    #[inline(always)]
+    pub fn intersect_steps<S: Steps>(
+        &self,
+        ray: &Ray,
+        t_min: f64,
+        t_max: f64,
+        steps: &mut S,
+    ) -> Option<ShapeHit> {
+        let roots = sphere_roots_steps(ray.origin, ray.direction, self.center, self.radius, steps)?;
+        let t = nearest_root(roots, t_min, t_max);
+        steps.root_taken(t);
+        Some(self.hit_at(ray, t?))
     }
 
     /// The hit of `ray` at its root `t`.
@@ -165,9 +201,24 @@ impl Ellipsoid {
     /// The nearest hit in (t_min, t_max).
     #[inline]
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
+        self.intersect_steps(ray, t_min, t_max, &mut ())
+    }
+
+    /// [`intersect`](Self::intersect), telling `steps` the unit sphere's
+    /// quadratic in object space, its roots and the root taken.
+    #[inline(always)]
+    pub fn intersect_steps<S: Steps>(
+        &self,
+        ray: &Ray,
+        t_min: f64,
+        t_max: f64,
+        steps: &mut S,
+    ) -> Option<ShapeHit> {
         let (origin, direction) = self.transform.ray_to_object(ray);
-        let roots = sphere_roots(origin, direction, DVec3::ZERO, 1.0)?;
-        let t = nearest_root(roots, t_min, t_max)?;
+        let roots = sphere_roots_steps(origin, direction, DVec3::ZERO, 1.0, steps)?;
+        let t = nearest_root(roots, t_min, t_max);
+        steps.root_taken(t);
+        let t = t?;
         let normal = self.transform.normal(origin + t * direction);
         Some(ShapeHit::geometric(
             t,

@@ -13,10 +13,17 @@ use serde::Serialize;
 
 use super::{RayStats, RenderSettings, render_pixel_recorded};
 use crate::geometry::Hit;
-use crate::lights::{LightSample, LightShape, spot_attenuation};
+use crate::lights::{LightSample, LightShape};
 use crate::math::Ray;
+use crate::math::ray::SpawnOrigins;
 use crate::scene::Scene;
 use crate::shading::whitted::{RayKind, Recorder, Stop, Whitted, WhittedSettings};
+
+pub mod steps;
+pub use steps::{
+    EdgeStep, IntersectionSteps, PlaneSteps, PolygonSteps, ReflectionSteps, RefractionSteps,
+    SphereSteps,
+};
 
 /// One ray of the tree and everything at its end.
 #[derive(Clone, Debug, Default, Serialize, PartialEq)]
@@ -33,6 +40,20 @@ pub struct RayNode {
     pub direction: [f64; 3],
     /// What it hit; `None`: it brings the background.
     pub hit: Option<HitInfo>,
+    /// The test of the object hit, step by step as the notes work it
+    /// (`None` on a miss, and for a moving scene).
+    pub intersection: Option<IntersectionSteps>,
+    /// The other objects' tests and why each was rejected: the nearest
+    /// few (see `steps::REJECTED`)…
+    pub rejected: Vec<IntersectionSteps>,
+    /// …and how many more objects the ray was tested against.
+    pub rejected_left_out: usize,
+    /// R = I − 2N(I·N) at the hit, where a mirror reflection is possible
+    /// (kr > 0, a smooth surface).
+    pub reflection: Option<ReflectionSteps>,
+    /// Snell's law at the hit, for transparent objects: θi, the critical
+    /// angle, total internal reflection, T.
+    pub refraction: Option<RefractionSteps>,
     /// ka·Od·Ia.
     pub ambient: [f64; 3],
     /// The surface's own emission.
@@ -169,6 +190,9 @@ pub fn explain(
     );
     let mut recorder = TreeRecorder {
         scene,
+        // A moving scene is traced at an instant of its own, whose objects
+        // these steps would not see.
+        steps: scene.motion.is_empty(),
         stack: Vec::new(),
         root: None,
     };
@@ -198,6 +222,8 @@ pub fn explain(
 /// Builds the tree from the tracer's steps: a stack of the rays under way.
 struct TreeRecorder<'s> {
     scene: &'s Scene,
+    /// Whether to record the intersection tests' steps.
+    steps: bool,
     stack: Vec<(RayNode, Shading)>,
     root: Option<RayNode>,
 }
@@ -205,6 +231,11 @@ struct TreeRecorder<'s> {
 /// What the light terms need at the current hit.
 #[derive(Clone, Default)]
 struct Shading {
+    /// The ray as traced.
+    ray: Option<Ray>,
+    /// The hit point and its geometric normal (the feelers' origins).
+    point: DVec3,
+    geometric_normal: DVec3,
     n: DVec3,
     view: DVec3,
     od: DVec3,
@@ -233,6 +264,14 @@ pub struct FeelerPoint {
     pub weight: f64,
     /// What got through, per channel (0: blocked).
     pub visibility: [f64; 3],
+    /// Where the feeler starts: the hit point lifted off the surface.
+    pub origin: [f64; 3],
+    /// The nearest object on the feeler short of the light, if any (the
+    /// render asks only whether there is one; with transparent shadows it
+    /// passes through those that let light through).
+    pub blocked_by: Option<String>,
+    /// The distance to it along the feeler.
+    pub blocker_distance: Option<f64>,
 }
 
 impl Recorder for TreeRecorder<'_> {
@@ -250,6 +289,7 @@ impl Recorder for TreeRecorder<'_> {
             ..RayNode::default()
         };
         let shading = Shading {
+            ray: Some(*ray),
             view: -ray.direction,
             ..Shading::default()
         };
@@ -284,6 +324,17 @@ impl Recorder for TreeRecorder<'_> {
         shading.n = n;
         shading.od = od;
         shading.material = hit.material;
+        shading.point = hit.point;
+        shading.geometric_normal = hit.normal;
+        if let (true, Some(ray)) = (self.steps, shading.ray) {
+            node.intersection = Some(steps::intersection_steps(
+                self.scene,
+                hit.primitive,
+                &ray,
+                Some(hit),
+            ));
+            (node.rejected, node.rejected_left_out) = steps::rejected(self.scene, &ray, Some(hit));
+        }
     }
 
     fn ambient(&mut self, term: DVec3) {
@@ -301,15 +352,26 @@ impl Recorder for TreeRecorder<'_> {
     fn feeler(&mut self, light: usize, sample: &LightSample, visibility: DVec3) {
         let (direction, falloff) = (sample.direction, sample.falloff);
         let scene = self.scene;
-        let Some((node, s)) = self.stack.last_mut() else {
+        let Some((_, s)) = self.stack.last_mut() else {
             return;
         };
         if s.points.len() < FEELER_POINTS {
-            let point = node
-                .hit
-                .as_ref()
-                .map_or(DVec3::ZERO, |h| DVec3::from(h.point));
+            let point = s.point;
+            // The feeler as the render spawns it, and the nearest object on
+            // it short of the light.
+            let (feeler, gap) = SpawnOrigins::new(point, s.geometric_normal).spawn(direction);
+            let blocker = scene.aggregate.closest_hit(&feeler, sample.distance - gap);
             s.points.push(FeelerPoint {
+                origin: feeler.origin.to_array(),
+                blocked_by: blocker.map(|b| {
+                    scene
+                        .names
+                        .objects
+                        .get(&b.primitive)
+                        .cloned()
+                        .unwrap_or_else(|| "unnamed".into())
+                }),
+                blocker_distance: blocker.map(|b| b.t),
                 direction: direction.to_array(),
                 on_light: sample
                     .distance
@@ -330,10 +392,11 @@ impl Recorder for TreeRecorder<'_> {
             direction: axis,
             cos_inner,
             cos_outer,
+            cone,
             ..
         } = scene.lights[light].shape
         {
-            sums.4 += spot_attenuation(axis.dot(-direction), cos_inner, cos_outer);
+            sums.4 += cone.attenuation(axis.dot(-direction), cos_inner, cos_outer);
         }
         sums.0 += visibility;
         sums.1 += visibility * falloff * diffuse;
@@ -367,9 +430,22 @@ impl Recorder for TreeRecorder<'_> {
     }
 
     fn split(&mut self, kr: DVec3, kt: DVec3, eta: Option<(f64, f64)>, tir: bool) {
-        let Some((node, _)) = self.stack.last_mut() else {
+        let scene = self.scene;
+        let Some((node, s)) = self.stack.last_mut() else {
             return;
         };
+        // The renderer's own calls: reflect(I, N) and refract(I, N, ηi/ηt),
+        // I = −V.
+        let smooth = scene
+            .materials
+            .get(s.material as usize)
+            .is_some_and(|m| m.roughness == 0.0);
+        if smooth && kr != DVec3::ZERO {
+            node.reflection = Some(steps::reflection_steps(-s.view, s.n));
+        }
+        if let Some((eta_i, eta_t)) = eta {
+            node.refraction = Some(steps::refraction_steps(-s.view, s.n, eta_i, eta_t));
+        }
         node.kr = kr.to_array();
         node.kt = kt.to_array();
         node.total_internal_reflection = tir;
@@ -380,9 +456,13 @@ impl Recorder for TreeRecorder<'_> {
     }
 
     fn stop(&mut self, why: Stop) {
-        let Some((node, _)) = self.stack.last_mut() else {
+        let scene = self.scene;
+        let Some((node, s)) = self.stack.last_mut() else {
             return;
         };
+        if let (Stop::Miss, true, Some(ray)) = (why, self.steps, s.ray) {
+            (node.rejected, node.rejected_left_out) = steps::rejected(scene, &ray, None);
+        }
         node.stopped.push(match why {
             Stop::Miss => "miss: the background",
             Stop::Depth => "depth limit (max_depth)",

@@ -1,6 +1,7 @@
 //! The laws of reflection and refraction (lecture notes, "Secondary Rays"),
 //! and the Fresnel reflectance of a dielectric boundary.
 
+use crate::geometry::steps::Steps;
 use crate::math::transcendental;
 use glam::DVec3;
 
@@ -8,7 +9,16 @@ use glam::DVec3;
 /// surface; R makes the same angle with N as I, in the plane of I and N.
 #[inline]
 pub fn reflect(incident: DVec3, normal: DVec3) -> DVec3 {
-    incident - 2.0 * normal * incident.dot(normal)
+    reflect_steps(incident, normal, &mut ())
+}
+
+/// [`reflect`], telling `steps` I·N and R.
+#[inline(always)]
+pub fn reflect_steps<S: Steps>(incident: DVec3, normal: DVec3, steps: &mut S) -> DVec3 {
+    let i_dot_n = incident.dot(normal);
+    let r = incident - 2.0 * normal * i_dot_n;
+    steps.reflection(i_dot_n, r);
+    r
 }
 
 /// Snell's law, η = ηi/ηt = sin θt / sin θi, in vector form:
@@ -18,9 +28,22 @@ pub fn reflect(incident: DVec3, normal: DVec3) -> DVec3 {
 /// the radicand is negative, no light is transmitted.
 #[inline]
 pub fn refract(incident: DVec3, normal: DVec3, eta: f64) -> Option<DVec3> {
+    refract_steps(incident, normal, eta, &mut ())
+}
+
+/// [`refract`], telling `steps` cos θi, the radicand (cos² θt) and T.
+#[inline(always)]
+pub fn refract_steps<S: Steps>(
+    incident: DVec3,
+    normal: DVec3,
+    eta: f64,
+    steps: &mut S,
+) -> Option<DVec3> {
     let cos_i = -incident.dot(normal);
     let radicand = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
-    (radicand >= 0.0).then(|| eta * incident + (eta * cos_i - radicand.sqrt()) * normal)
+    let t = (radicand >= 0.0).then(|| eta * incident + (eta * cos_i - radicand.sqrt()) * normal);
+    steps.refraction(cos_i, radicand, t);
+    t
 }
 
 /// The critical angle θc = asin(ηt/ηi) past which light going from index

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 
 use clap::Args;
 use prism::Scene;
-use prism::render::explain::{Explanation, RayNode, explain};
+use prism::render::explain::{Explanation, IntersectionSteps, RayNode, explain};
 
 use super::render::SettingsArgs;
 use super::{BAD_INPUT, LoadArgs, report_scene_error};
@@ -183,6 +183,11 @@ fn node(n: &RayNode, indent: usize, out: &mut String) {
                     }
                 ),
             );
+            if let Some(s) = &n.intersection {
+                for l in test_lines(s) {
+                    line(out, format!("  {l}"));
+                }
+            }
             line(out, format!("  ambient ka*Od*Ia = {}", rgb(n.ambient)));
             if n.emission != [0.0; 3] {
                 line(out, format!("  emission = {}", rgb(n.emission)));
@@ -220,6 +225,60 @@ fn node(n: &RayNode, indent: usize, out: &mut String) {
             );
         }
     }
+    if let Some(r) = &n.reflection {
+        line(
+            out,
+            format!(
+                "  reflection: I.N = {:.6}, R = I - 2N(I.N) = {} (angle {:.4} deg)",
+                r.i_dot_n,
+                rgb(r.r),
+                r.theta
+            ),
+        );
+    }
+    if let Some(r) = &n.refraction {
+        line(
+            out,
+            format!(
+                "  refraction: eta = {}/{} = {:.6}, theta_i = {:.4} deg{}; {}",
+                r.eta_i,
+                r.eta_t,
+                r.eta,
+                r.theta_i,
+                r.critical_angle
+                    .map_or(String::new(), |c| format!(", critical angle {c:.4} deg")),
+                match (r.theta_t, r.t) {
+                    (Some(theta_t), Some(t)) => {
+                        format!("theta_t = {theta_t:.4} deg, T = w + eta*u = {}", rgb(t))
+                    }
+                    _ => format!(
+                        "1 - eta^2(1 - cos^2 theta_i) = {:.6} < 0: total internal reflection",
+                        r.radicand
+                    ),
+                }
+            ),
+        );
+    }
+    if !n.rejected.is_empty() {
+        line(
+            out,
+            format!(
+                "  also tested: {} objects{}",
+                n.rejected.len() + n.rejected_left_out,
+                if n.rejected_left_out > 0 {
+                    format!(", the {} nearest the ray:", n.rejected.len())
+                } else {
+                    ":".into()
+                }
+            ),
+        );
+        for r in &n.rejected {
+            line(
+                out,
+                format!("    `{}` ({}): {}", r.object, r.shape, r.verdict),
+            );
+        }
+    }
     for why in &n.stopped {
         line(out, format!("  stops: {why}"));
     }
@@ -238,4 +297,65 @@ fn node(n: &RayNode, indent: usize, out: &mut String) {
         node(t, indent + 2, out);
     }
     line(out, format!("  = {}", rgb(n.radiance)));
+}
+
+/// The intersection test of the object hit, as the notes work it.
+fn test_lines(s: &IntersectionSteps) -> Vec<String> {
+    let mut lines = Vec::new();
+    if let Some(p) = &s.plane {
+        lines.push(format!(
+            "{} test: n = {}, n.d = {:.6} ({}), t = (d - n.O)/(n.d) = {}{}",
+            s.shape,
+            rgb(p.normal),
+            p.n_dot_d,
+            p.verdict,
+            p.t.map_or("-".into(), |t| format!("{t:.6}")),
+            p.point
+                .map_or(String::new(), |q| format!(", P = O + tD = {}", rgb(q)))
+        ));
+    }
+    if let Some(p) = &s.polygon {
+        let count = |case: &str| p.edges.iter().filter(|e| e.case == case).count();
+        lines.push(format!(
+            "principal axis {} (the normal's largest component), projected onto {}; \
+             hit translated to the origin, test ray along +{}: of {} edges, {} both z positive, \
+             {} both z negative, {} both x negative, {} x_int computed ({} > 0); \
+             crossings {} ({}): {}",
+            p.principal_axis,
+            p.projected_onto,
+            p.x_axis,
+            p.edges.len() + p.edges_left_out,
+            count("both z positive"),
+            count("both z negative"),
+            count("both x negative"),
+            count("x_int"),
+            p.edges.iter().filter(|e| e.crosses).count(),
+            p.crossings,
+            p.parity,
+            if p.inside { "inside" } else { "outside" }
+        ));
+    }
+    if let Some(q) = &s.sphere {
+        lines.push(format!(
+            "{} test{}: a = {:.6}, b = {:.6}, c = {:.6}, discriminant b^2 - 4ac = {:.6}; {}",
+            s.shape,
+            if q.object_space {
+                " (unit sphere, object space)"
+            } else {
+                ""
+            },
+            q.a,
+            q.b,
+            q.c,
+            q.discriminant,
+            match (q.roots, q.taken) {
+                (Some([t0, t1]), Some(taken)) => {
+                    format!("roots t0 = {t0:.6}, t1 = {t1:.6}; {taken} taken")
+                }
+                (Some([t0, t1]), None) => format!("roots t0 = {t0:.6}, t1 = {t1:.6}, both behind"),
+                _ => "no real roots".into(),
+            }
+        ));
+    }
+    lines
 }
