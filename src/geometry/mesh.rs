@@ -332,6 +332,32 @@ impl Mesh {
         });
     }
 
+    /// Calls `each` with the index (in the [`MeshData`]) and hit of every
+    /// triangle hit with t in (t_min, t_max), t_min ≥ 0, in the order the
+    /// tree meets them: the closest-hit traversal with a reach that never
+    /// shrinks, each triangle tested as [`intersect`](Self::intersect)
+    /// tests it.
+    pub fn each_hit(
+        &self,
+        origin: DVec3,
+        direction: DVec3,
+        t_min: f64,
+        t_max: f64,
+        mut each: impl FnMut(u32, TriangleHit),
+    ) {
+        let ray = WatertightRay::new(origin, direction);
+        let order = self.bvh.order();
+        let test = |position: usize, _reach: f64| {
+            let [a, b, c] = self.corners(position);
+            if let Some(h) = triangle_hit(&ray, a, b, c, t_min, t_max) {
+                each(order[position], h);
+            }
+            None
+        };
+        self.bvh
+            .closest(&NodeRay::new(origin, direction), t_max, test);
+    }
+
     #[inline(always)]
     fn corners(&self, triangle: usize) -> [DVec3; 3] {
         let [a, b, c] = self.triangles[triangle];

@@ -55,52 +55,58 @@ impl RayScene {
     /// hit at the same t, the one first in its mesh's face list, and of
     /// meshes, the lowest id.
     pub fn intersect(&self, rays: &Rays, options: &QueryOptions) -> Result<Hits, QueryError> {
-        let mut nearest = vec![MISS; rays.len()];
+        let n = rays.len();
         let scale = self.bounds().diagonal();
+        // Written in place, chunk by chunk: a vector of whole hits would
+        // be three times the answer's size to fault in and read back.
+        let mut hits = Hits {
+            t: vec![f64::INFINITY; n],
+            mesh_id: vec![-1; n],
+            triangle_id: vec![-1; n],
+            u: vec![0.0; n],
+            v: vec![0.0; n],
+            normal: vec![0.0; 3 * n],
+        };
+        let Hits {
+            t,
+            mesh_id,
+            triangle_id,
+            u,
+            v,
+            normal,
+        } = &mut hits;
         options.run(|| {
-            nearest
-                .par_chunks_mut(CHUNK)
+            t.par_chunks_mut(CHUNK)
+                .zip(mesh_id.par_chunks_mut(CHUNK))
+                .zip(triangle_id.par_chunks_mut(CHUNK))
+                .zip(u.par_chunks_mut(CHUNK))
+                .zip(v.par_chunks_mut(CHUNK))
+                .zip(normal.par_chunks_mut(3 * CHUNK))
                 .enumerate()
-                .try_for_each(|(c, out)| {
+                .try_for_each(|(c, (((((t, mesh_id), triangle_id), u), v), normal))| {
                     if options.cancelled() {
                         return Err(QueryError::Cancelled);
                     }
-                    for (g, group) in out.chunks_mut(PACKET).enumerate() {
-                        self.nearest_group(rays, c * CHUNK + g * PACKET, group, scale);
+                    for first in (0..t.len()).step_by(PACKET) {
+                        let count = PACKET.min(t.len() - first);
+                        let mut group = [MISS; PACKET];
+                        let group = &mut group[..count];
+                        self.nearest_group(rays, c * CHUNK + first, group, scale);
+                        for (k, near) in group.iter().enumerate() {
+                            let Some(h) = near.hit else { continue };
+                            let i = first + k;
+                            t[i] = h.t;
+                            mesh_id[i] = i64::from(near.mesh);
+                            triangle_id[i] = i64::from(h.triangle);
+                            u[i] = h.barycentric.y;
+                            v[i] = h.barycentric.z;
+                            let world = self.meshes[near.mesh as usize].world_normal(h.normal);
+                            normal[3 * i..3 * i + 3].copy_from_slice(&world.to_array());
+                        }
                     }
                     Ok(())
                 })
         })?;
-        let n = nearest.len();
-        let mut hits = Hits {
-            t: Vec::with_capacity(n),
-            mesh_id: Vec::with_capacity(n),
-            triangle_id: Vec::with_capacity(n),
-            u: Vec::with_capacity(n),
-            v: Vec::with_capacity(n),
-            normal: Vec::with_capacity(3 * n),
-        };
-        for near in &nearest {
-            match near.hit {
-                None => {
-                    hits.t.push(f64::INFINITY);
-                    hits.mesh_id.push(-1);
-                    hits.triangle_id.push(-1);
-                    hits.u.push(0.0);
-                    hits.v.push(0.0);
-                    hits.normal.extend([0.0; 3]);
-                }
-                Some(h) => {
-                    let placed = &self.meshes[near.mesh as usize];
-                    hits.t.push(h.t);
-                    hits.mesh_id.push(i64::from(near.mesh));
-                    hits.triangle_id.push(i64::from(h.triangle));
-                    hits.u.push(h.barycentric.y);
-                    hits.v.push(h.barycentric.z);
-                    hits.normal.extend(placed.world_normal(h.normal).to_array());
-                }
-            }
-        }
         Ok(hits)
     }
 
@@ -311,6 +317,19 @@ impl RayScene {
                 continue;
             }
             let (o, d) = placed.local(origin, direction);
+            if t_min >= 0.0 {
+                // The renderer's traversal (its SIMD box tests), which
+                // looks ahead of the origin only.
+                placed.mesh.each_hit(o, d, t_min, t_max, |triangle, h| {
+                    each(Crossing {
+                        t: h.t,
+                        mesh: id as u32,
+                        triangle,
+                        barycentric: h.barycentric,
+                    });
+                });
+                continue;
+            }
             let ray = WatertightRay::new(o, d);
             placed.mesh.visit_triangles(
                 |b| meets(b, o, d, t_min, t_max),

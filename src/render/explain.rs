@@ -233,8 +233,10 @@ struct TreeRecorder<'s> {
 struct Shading {
     /// The ray as traced.
     ray: Option<Ray>,
-    /// The hit point and its geometric normal (the feelers' origins).
+    /// The hit point, where feelers start from (the point moved by the
+    /// hit's shadow-terminator offset) and the geometric normal.
     point: DVec3,
+    feeler_base: DVec3,
     geometric_normal: DVec3,
     n: DVec3,
     view: DVec3,
@@ -325,6 +327,7 @@ impl Recorder for TreeRecorder<'_> {
         shading.od = od;
         shading.material = hit.material;
         shading.point = hit.point;
+        shading.feeler_base = hit.point + hit.feeler_offset;
         shading.geometric_normal = hit.normal;
         if let (true, Some(ray)) = (self.steps, shading.ray) {
             node.intersection = Some(steps::intersection_steps(
@@ -357,9 +360,11 @@ impl Recorder for TreeRecorder<'_> {
         };
         if s.points.len() < FEELER_POINTS {
             let point = s.point;
-            // The feeler as the render spawns it, and the nearest object on
-            // it short of the light.
-            let (feeler, gap) = SpawnOrigins::new(point, s.geometric_normal).spawn(direction);
+            // The feeler as the render spawns it (ShadingPoint::
+            // feeler_origins), and the nearest object on it short of the
+            // light.
+            let (feeler, gap) =
+                SpawnOrigins::new(s.feeler_base, s.geometric_normal).spawn(direction);
             let blocker = scene.aggregate.closest_hit(&feeler, sample.distance - gap);
             s.points.push(FeelerPoint {
                 origin: feeler.origin.to_array(),
