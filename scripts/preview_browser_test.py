@@ -13,6 +13,11 @@ follows it on a save while the slider is left there; the canvas, the PNG
 "Save PNG" downloads and `prism render --exposure EV` agree at the scene's
 exposure and at one set with the slider; a slider moved away stays when
 the scene's exposure changes, until its button brings the scene's back.
+The lecture (issue 31): clicks inside and outside the concave star of
+star.toml and on the glass ball of nested-glass.toml, and checks the
+drawn polygon diagram (axis, edge cases, crossings, parity) and Snell's
+construction (theta_i, the critical angle, TIR) against `prism explain
+--json`.
 Keeps screenshots in target/preview-screens/ (and the README's in
 docs/images/preview.png when asked). Run by scripts/test-preview-browser.sh.
 
@@ -386,6 +391,114 @@ try:
          "the page to connect once there is room and draw the picture")
     compare(canvas_rgb(), reference("connected"), "the page that waited for room")
 
+    # The lecture, live (issue 31): a click inside the concave star and one
+    # in the notch between two of its points draw the projected polygon,
+    # its crossings and their parity; a click on the glass ball of
+    # nested-glass.toml draws Snell's construction with total internal
+    # reflection at the air bubble. Each drawn value is prism explain's.
+    lecture_server = None
+    for scene_name, clicks in (("star.toml", ((330, 140), (314, 192))),
+                               ("nested-glass.toml", ((210, 140),))):
+        path = os.path.join(WORK, scene_name)
+        lecture_server = subprocess.Popen([PRISM, "serve", path, "--port", "0"],
+                                          stdout=subprocess.PIPE, text=True)
+        driver.get(re.search(r"http://\S+", lecture_server.stdout.readline()).group(0))
+        wait("window.prism.phase === 'done' && " + DRAWN, f"{scene_name} to render")
+        for x, y in clicks:
+            # The last screenshot scrolled the inspector's diagram into view.
+            driver.execute_script("window.scrollTo(0, 0); window.prism.explanation = null;")
+            canvas = driver.find_element(By.ID, "picture")
+            cw, ch = driver.execute_script("return [window.prism.width, window.prism.height];")
+            # WebDriver offsets are whole CSS pixels from the centre, which
+            # may lie between pixels: a click that takes a neighbour is
+            # moved by the difference and made again.
+            dx, dy = 0, 0
+            for _ in range(3):
+                driver.execute_script("window.prism.explanation = null;")
+                ActionChains(driver).move_to_element_with_offset(
+                    canvas, x - cw // 2 + dx, y - ch // 2 + dy).click().perform()
+                wait("window.prism.explanation && document.getElementById('inspect-radiance')",
+                     f"the inspector near {x},{y}")
+                shown = driver.execute_script("return window.prism.explanation;")
+                if shown["pixel"] == [x, y]:
+                    break
+                dx += x - shown["pixel"][0]
+                dy += y - shown["pixel"][1]
+            # The pixel clicked, as the command explains it.
+            x, y = shown["pixel"]
+            out = subprocess.run([PRISM, "explain", path, "--pixel", f"{x},{y}", "--json"],
+                                 check=True, capture_output=True, text=True).stdout
+            expected = json.loads(out)
+            close(shown, expected)
+            tree = expected["tree"]
+            if scene_name == "star.toml":
+                # The star's test: the hit's, or among those rejected.
+                tests = [tree["intersection"]] + tree["rejected"]
+                star = next(t for t in tests if t and t["object"] == "standing star")
+                drawn = driver.execute_script(f"""
+                    const d = document.querySelector('.polygon-diagram[data-primitive="{star["primitive"]}"]');
+                    return d && {{axis: d.dataset.principalAxis, crossings: +d.dataset.crossings,
+                        parity: d.dataset.parity, inside: d.dataset.inside === 'true',
+                        text: d.querySelector('.verdict').textContent,
+                        edges: [...d.querySelectorAll('line.edge')].map((e) => [e.dataset.case,
+                            e.dataset.xInt === undefined ? null : +e.dataset.xInt,
+                            e.dataset.crosses === 'true'])}};""")
+                p = star["polygon"]
+                want = {"axis": p["principal_axis"], "crossings": p["crossings"],
+                        "parity": p["parity"], "inside": p["inside"]}
+                if not drawn or any(drawn[k] != v for k, v in want.items()):
+                    fail(f"{x},{y}: the star's diagram shows {drawn}, explain {want}")
+                edges = [[e["case"], e["x_int"], e["crosses"]] for e in p["edges"]]
+                if drawn["edges"] != edges:
+                    fail(f"{x},{y}: the edges drawn {drawn['edges']} are not explain's {edges}")
+                if f"{p['crossings']} crossings: {p['parity']}" not in drawn["text"]:
+                    fail(f"{x},{y}: the verdict reads {drawn['text']!r}")
+                verdict = "inside" if p["inside"] else "outside"
+                print(f"ok: {scene_name} at {x},{y}: the projected star (principal axis "
+                      f"{p['principal_axis']}), {len(edges)} edges with their cases, "
+                      f"{p['crossings']} crossings, {p['parity']}: {verdict}, as explain says")
+                shot = f"lecture-star-{verdict}.png"
+                driver.execute_script(f"""document.querySelector(
+                    '.polygon-diagram[data-primitive="{star["primitive"]}"]')
+                    .scrollIntoView({{block: "nearest"}});""")
+            else:
+                nodes, stack = [], [tree]
+                while stack:
+                    n = stack.pop()
+                    nodes.append(n)
+                    stack += [c for c in (n["reflected"], n["refracted"]) if c]
+                tir = next(n for n in nodes if n["refraction"]
+                           and n["refraction"]["total_internal_reflection"])
+                r = tir["refraction"]
+                drawn = driver.execute_script("""
+                    const d = [...document.querySelectorAll('.snell-diagram')]
+                        .find((d) => d.dataset.tir === 'true');
+                    return d && {theta_i: +d.dataset.thetaI, critical: +d.dataset.criticalAngle,
+                        text: d.textContent, r: !!d.querySelector('line.ray-r'),
+                        t: !!d.querySelector('line.ray-t')};""")
+                if (not drawn or drawn["theta_i"] != r["theta_i"]
+                        or drawn["critical"] != r["critical_angle"]
+                        or not drawn["r"] or drawn["t"]):
+                    fail(f"the Snell diagram shows {drawn}, explain {r}")
+                for words in (f"{r['theta_i']:.2f}°", f"{r['critical_angle']:.2f}°",
+                              "total internal reflection"):
+                    if words not in drawn["text"]:
+                        fail(f"the Snell diagram does not read {words!r}")
+                feelers = driver.execute_script(
+                    "return window.prism.explanation.segments.filter((s) => s.kind === 'feeler').length;")
+                print(f"ok: {scene_name} at {x},{y}: Snell's construction drawn, "
+                      f"theta_i {r['theta_i']:.2f}° past the critical angle "
+                      f"{r['critical_angle']:.2f}°: total internal reflection, R drawn, no T; "
+                      f"{feelers} feelers drawn over the picture")
+                shot = "lecture-glass.png"
+                driver.execute_script("""[...document.querySelectorAll('.snell-diagram')]
+                    .find((d) => d.dataset.tir === 'true').scrollIntoView({block: "nearest"});""")
+            driver.save_screenshot(os.path.join(SCREENS, shot))
+            if README_SHOT:
+                driver.save_screenshot(os.path.join(os.path.dirname(README_SHOT), shot))
+        lecture_server.kill()
+        lecture_server = None
+
     # Network mode: the token in the printed URL, then in a cookie.
     network = subprocess.Popen([PRISM, "serve", SCENE, "--port", "0", "--bind", "0.0.0.0"],
                                stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
@@ -406,6 +519,8 @@ try:
 finally:
     driver.quit()
     server.kill()
+    if globals().get("lecture_server"):
+        lecture_server.kill()
     if "network" in globals():
         network.kill()
 print("ok: the preview passes in Chromium")

@@ -4,7 +4,8 @@
 # scripts/preview_browser_test.py against `prism serve` on a copy of
 # scenes/whitted.toml. Screenshots go to target/preview-screens/.
 # With --readme-shot, the inspector's screenshot also replaces
-# docs/images/preview.png.
+# docs/images/preview.png, and the lecture's (lecture-*.png) go beside it.
+# CARGO_TARGET_DIR, if set, is where the binary is built and found.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if ! command -v chromium >/dev/null || [ ! -x /usr/bin/chromedriver ]; then
@@ -20,8 +21,8 @@ fi
 cargo build --release --locked --quiet
 WORK=$(mktemp -d /tmp/prism-browser.XXXXXX)
 trap 'rm -rf "$WORK"' EXIT
-cp scenes/whitted.toml "$WORK/"
+cp scenes/whitted.toml scenes/star.toml scenes/nested-glass.toml "$WORK/"
 shot=()
 [ "${1:-}" = "--readme-shot" ] && shot=("$PWD/docs/images/preview.png")
-"$VENV/bin/python" scripts/preview_browser_test.py "$PWD/target/release/prism" "$WORK" \
+"$VENV/bin/python" scripts/preview_browser_test.py "${CARGO_TARGET_DIR:-$PWD/target}/release/prism" "$WORK" \
     "$PWD/target/preview-screens" "${shot[@]}"

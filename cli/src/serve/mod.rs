@@ -672,7 +672,9 @@ struct PixelQuery {
 }
 
 /// `prism explain --json` for a pixel of the last good scene, with each
-/// ray's segment projected onto the picture (`screen`: x0, y0, x1, y1).
+/// ray's segment projected onto the picture (`screen`: x0, y0, x1, y1),
+/// its shadow feelers' too (`kind` "feeler", `blocked`: ending at the
+/// blocker).
 async fn explain(State(app): State<App>, Query(q): Query<PixelQuery>) -> Response {
     let Some((scene, settings, _)) = app.shared.last_scene() else {
         return refuse(StatusCode::CONFLICT, "no scene has loaded yet\n");
@@ -710,6 +712,26 @@ async fn explain(State(app): State<App>, Query(q): Query<PixelQuery>) -> Respons
                 segments.push(serde_json::json!({
                     "kind": node.kind, "depth": node.depth, "screen": [a.0, a.1, b.0, b.1]
                 }));
+            }
+            // Its shadow feelers: to the light, or to what blocked them.
+            for (light, l) in node.lights.iter().enumerate() {
+                for (index, f) in l.feeler_points.iter().enumerate() {
+                    let from = glam::DVec3::from_array(f.origin);
+                    let towards = glam::DVec3::from_array(f.direction);
+                    let to = match (f.blocker_distance, f.on_light) {
+                        (Some(t), _) => from + towards * t,
+                        (None, Some(p)) => glam::DVec3::from_array(p),
+                        // A directional light: a stretch towards it.
+                        (None, None) => from + towards * 1e2,
+                    };
+                    if let (Some(a), Some(b)) = (project(from), project(to)) {
+                        segments.push(serde_json::json!({
+                            "kind": "feeler", "depth": node.depth, "light": light,
+                            "feeler": index, "blocked": f.blocked_by.is_some(),
+                            "screen": [a.0, a.1, b.0, b.1]
+                        }));
+                    }
+                }
             }
         }
         json["segments"] = serde_json::Value::Array(segments);

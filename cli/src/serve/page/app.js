@@ -313,7 +313,155 @@ function nodeHtml(n) {
   for (const s of n.stopped) rows.push(`<tr class="stop"><td>stops</td><td>${s}</td></tr>`);
   row("= radiance", `<b>${fmt(n.radiance)}</b>`);
   const kids = [n.reflected, n.refracted].filter(Boolean).map(nodeHtml).join("");
-  return `<div class="node ${n.kind}" data-kind="${n.kind}"><table>${rows.join("")}</table>${kids}</div>`;
+  return `<div class="node ${n.kind}" data-kind="${n.kind}"><table>${rows.join("")}</table>` +
+    lectureHtml(n) + `${kids}</div>`;
+}
+
+// The lecture worked on the ray: the test of what it hit, step by step,
+// with the notes' diagrams (the projected polygon and its crossings;
+// Snell's construction), R = I − 2N(I·N), and what else it was tested
+// against.
+const num = (x, d = 6) => (x == null ? "–" : (+x).toFixed(d));
+function lectureHtml(n) {
+  const parts = [];
+  if (n.intersection) parts.push(testHtml(n.intersection, true));
+  if (n.reflection) {
+    const r = n.reflection;
+    parts.push(`<div class="step reflection">R = I − 2N(I·N): I·N = ${num(r.i_dot_n)}, ` +
+      `R = (${fmt(r.r)}), angle ${num(r.theta, 2)}°</div>`);
+  }
+  if (n.refraction) parts.push(snellHtml(n.refraction));
+  if (n.rejected && n.rejected.length) {
+    const more = n.rejected_left_out ? ` (${n.rejected.length} nearest the ray of ` +
+      `${n.rejected.length + n.rejected_left_out})` : "";
+    const items = n.rejected.map((t) => `<li>${testHtml(t, false)}</li>`).join("");
+    // Open at a camera ray that missed a polygon whose plane it met (a
+    // click beside a polygon: why it was missed, in the picture).
+    const hitPolygon = n.intersection && n.intersection.polygon;
+    const open = n.depth === 1 && !hitPolygon && n.rejected.some((t) => t.polygon) ? " open" : "";
+    parts.push(`<details class="rejected"${open}><summary>also tested${more}</summary><ul>${items}</ul></details>`);
+  }
+  return parts.join("");
+}
+function testHtml(t, open) {
+  const lines = [`<b>${escapeHtml(t.object)}</b> (${t.shape}): ${escapeHtml(t.verdict)}`];
+  if (t.plane) {
+    const p = t.plane;
+    lines.push(`n = (${fmt(p.normal)}), n·d = ${num(p.n_dot_d)} → <b>${p.verdict}</b>; ` +
+      `t = (d − n·O)/(n·d) = ${num(p.t)}` + (p.point ? `; P = O + tD = (${fmt(p.point)})` : ""));
+  }
+  if (t.sphere) {
+    const q = t.sphere;
+    lines.push(`a t² + b t + c = 0${q.object_space ? " (unit sphere, object space)" : ""}: ` +
+      `a = ${num(q.a)}, b = ${num(q.b)}, c = ${num(q.c)}; discriminant b² − 4ac = ` +
+      `<b class="discriminant">${num(q.discriminant)}</b>; ` +
+      (q.roots ? `roots t₀ = ${num(q.roots[0])}, t₁ = ${num(q.roots[1])}; ` +
+        (q.taken ? `<b>${q.taken}</b> taken` : "both behind the ray") : "no real roots"));
+  }
+  let diagram = "";
+  if (t.polygon) diagram = polygonHtml(t.polygon, t.primitive);
+  const body = lines.map((l) => `<div>${l}</div>`).join("") + diagram;
+  return `<div class="step test" data-primitive="${t.primitive}">` +
+    (open ? body : `<details${diagram ? " open" : ""}><summary>${lines[0]}</summary>${lines.slice(1).map((l) => `<div>${l}</div>`).join("")}${diagram}</details>`) +
+    "</div>";
+}
+
+// The notes' point-in-polygon picture: the polygon projected along its
+// principal axis, translated so the hit is the origin, the test ray along
+// +x, each edge coloured by its case and each x_int marked.
+const CASE_COLOURS = { "both z positive": "#777", "both z negative": "#777",
+  "both x negative": "#a1887f", x_int: "#ffb74d" };
+function polygonHtml(p, primitive) {
+  const pts = p.translated_polygon;
+  const xs = pts.map((q) => q[0]).concat([0]), zs = pts.map((q) => q[1]).concat([0]);
+  const [x0, x1, z0, z1] = [Math.min(...xs), Math.max(...xs), Math.min(...zs), Math.max(...zs)];
+  const W = 320, H = 240, pad = 18;
+  const k = Math.min((W - 2 * pad) / (x1 - x0 || 1), (H - 2 * pad) / (z1 - z0 || 1));
+  const X = (x) => pad + (x - x0) * k, Z = (z) => H - pad - (z - z0) * k;
+  const svg = [];
+  svg.push(`<polygon points="${pts.map((q) => `${X(q[0])},${Z(q[1])}`).join(" ")}" fill="rgba(255,255,255,0.08)" stroke="none"/>`);
+  svg.push(`<line x1="${X(x0)}" y1="${Z(0)}" x2="${W}" y2="${Z(0)}" stroke="#555" stroke-dasharray="3 3"/>`);
+  svg.push(`<line x1="${X(0)}" y1="${Z(0)}" x2="${W - 2}" y2="${Z(0)}" stroke="#ffd54f" stroke-width="1.5" class="test-ray"/>`);
+  svg.push(`<line x1="${X(0)}" y1="${Z(z0)}" x2="${X(0)}" y2="${Z(z1)}" stroke="#555" stroke-dasharray="3 3"/>`);
+  p.edges.forEach((e, i) => {
+    const colour = e.crosses ? "#66bb6a" : CASE_COLOURS[e.case];
+    svg.push(`<line class="edge" data-edge="${i}" data-case="${e.case}" data-crosses="${e.crosses}"` +
+      (e.x_int != null ? ` data-x-int="${e.x_int}"` : "") +
+      ` x1="${X(e.from[0])}" y1="${Z(e.from[1])}" x2="${X(e.to[0])}" y2="${Z(e.to[1])}"` +
+      ` stroke="${colour}" stroke-width="${e.crosses ? 2.5 : 1.5}"/>`);
+    if (e.x_int != null) {
+      svg.push(`<circle class="x-int" cx="${X(e.x_int)}" cy="${Z(0)}" r="3.5" ` +
+        `fill="${e.crosses ? "#66bb6a" : "none"}" stroke="${e.crosses ? "#66bb6a" : "#ef5350"}"/>`);
+    }
+  });
+  svg.push(`<circle cx="${X(0)}" cy="${Z(0)}" r="3" fill="#fff"/>`);
+  svg.push(`<text x="${W - 4}" y="${Z(0) - 4}" text-anchor="end" fill="#ffd54f" font-size="11">+x (${p.x_axis})</text>`);
+  svg.push(`<text x="${X(0) + 4}" y="12" fill="#aaa" font-size="11">z (${p.z_axis})</text>`);
+  const rows = p.edges.map((e, i) => `<tr><td>${i}</td><td>(${num(e.from[0], 3)}, ${num(e.from[1], 3)}) → ` +
+    `(${num(e.to[0], 3)}, ${num(e.to[1], 3)})</td><td>${e.case}</td><td>${e.x_int == null ? "" : num(e.x_int, 4)}</td>` +
+    `<td>${e.crosses ? "crosses" : ""}</td></tr>`).join("");
+  const left = p.edges_left_out ? `<div>${p.edges_left_out} more edges not listed</div>` : "";
+  return `<div class="polygon-diagram" data-primitive="${primitive}" data-principal-axis="${p.principal_axis}" ` +
+    `data-crossings="${p.crossings}" data-parity="${p.parity}" data-inside="${p.inside}">` +
+    `<div>principal axis <b>${p.principal_axis}</b> (largest |n| component): project onto the <b>${p.projected_onto}</b> plane; ` +
+    `translate P = (${num(p.point[0], 4)}, ${num(p.point[1], 4)}) to the origin; count crossings of +x</div>` +
+    `<svg width="${W}" height="${H}" viewBox="0 0 ${W} ${H}">${svg.join("")}</svg>` +
+    `<div class="verdict"><b class="crossings">${p.crossings}</b> crossings: <b>${p.parity}</b> → ` +
+    `${p.inside ? "inside" : "outside"}</div>` +
+    `<details><summary>edges</summary><table><tr><td>#</td><td>from → to (x, z)</td><td>case</td><td>x_int</td><td></td></tr>${rows}</table>${left}</details></div>`;
+}
+
+// Snell's construction in the plane of I and N: N up, the surface across,
+// I arriving, T = w + ηu leaving below (or, past the critical angle, no T
+// and R instead), the angles marked.
+function snellHtml(r) {
+  const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+  const len = Math.hypot(...r.u);
+  // The tangent: along u; at normal incidence any direction in the plane.
+  const tan = len > 1e-12 ? r.u.map((c) => c / len) : [0, 0, 0];
+  const W = 320, H = 220, cx = 160, cy = 110, L = 90;
+  const to = (v) => [cx + L * dot(v, tan), cy - L * dot(v, r.n)];
+  const svg = [];
+  svg.push(`<rect x="0" y="${cy}" width="${W}" height="${H - cy}" fill="rgba(129,199,132,0.10)"/>`);
+  svg.push(`<line x1="0" y1="${cy}" x2="${W}" y2="${cy}" stroke="#888"/>`);
+  svg.push(`<line x1="${cx}" y1="${cy - L - 10}" x2="${cx}" y2="${cy + L + 10}" stroke="#777" stroke-dasharray="4 3"/>`);
+  svg.push(`<text x="${cx + 4}" y="${cy - L}" fill="#ccc" font-size="11">N</text>`);
+  svg.push(`<text x="4" y="${cy - 6}" fill="#aaa" font-size="11">η_i = ${r.eta_i}</text>`);
+  svg.push(`<text x="4" y="${cy + 16}" fill="#aaa" font-size="11">η_t = ${r.eta_t}</text>`);
+  const arrow = (from, tip, colour, label, cls) => {
+    svg.push(`<line class="${cls}" x1="${from[0]}" y1="${from[1]}" x2="${tip[0]}" y2="${tip[1]}" stroke="${colour}" stroke-width="2"/>`);
+    svg.push(`<circle cx="${tip[0]}" cy="${tip[1]}" r="3" fill="${colour}"/>`);
+    svg.push(`<text x="${tip[0] + 5}" y="${tip[1] + 4}" fill="${colour}" font-size="12">${label}</text>`);
+  };
+  // I ends at the hit: drawn from −I.
+  const start = to(r.i.map((c) => -c));
+  arrow(start, [cx, cy], "#ffd54f", "", "ray-i");
+  svg.push(`<text x="${start[0] - 12}" y="${start[1]}" fill="#ffd54f" font-size="12">I</text>`);
+  if (r.critical_angle != null) {
+    const c = r.critical_angle * Math.PI / 180, s = Math.sign(-dot(r.i, tan)) || -1;
+    svg.push(`<line class="critical" x1="${cx}" y1="${cy}" x2="${cx + s * L * Math.sin(c)}" y2="${cy - L * Math.cos(c)}" stroke="#ef5350" stroke-dasharray="5 3"/>`);
+    svg.push(`<text x="${cx + s * L * Math.sin(c) + (s < 0 ? -70 : 4)}" y="${cy - L * Math.cos(c) - 4}" fill="#ef5350" font-size="11">θc ${r.critical_angle.toFixed(1)}°</text>`);
+  }
+  if (r.t) {
+    arrow([cx, cy], to(r.t), "#81c784", "T", "ray-t");
+    if (r.w) svg.push(`<line x1="${cx}" y1="${cy}" x2="${to(r.w)[0]}" y2="${to(r.w)[1]}" stroke="#81c784" stroke-dasharray="2 2"/>`);
+  } else {
+    // All of it reflected: R = I − 2N(I·N).
+    const nd = dot(r.i, r.n);
+    const refl = r.i.map((c, k) => c - 2 * r.n[k] * nd);
+    arrow([cx, cy], to(refl), "#4fc3f7", "R", "ray-r");
+  }
+  svg.push(`<text x="${cx - 60}" y="${cy - 30}" fill="#ffd54f" font-size="11">θi ${r.theta_i.toFixed(1)}°</text>`);
+  if (r.theta_t != null) svg.push(`<text x="${cx + 8}" y="${cy + 40}" fill="#81c784" font-size="11">θt ${r.theta_t.toFixed(1)}°</text>`);
+  const verdict = r.total_internal_reflection
+    ? `θi = ${num(r.theta_i, 2)}° > θc = ${num(r.critical_angle, 2)}°: <b>total internal reflection</b> ` +
+      `(1 − η²(1 − cos²θi) = ${num(r.radicand)} &lt; 0), no T`
+    : `θt = ${num(r.theta_t, 2)}°, T = w + ηu = (${fmt(r.t)})`;
+  return `<div class="snell-diagram" data-theta-i="${r.theta_i}" data-theta-t="${r.theta_t ?? ""}" ` +
+    `data-critical-angle="${r.critical_angle ?? ""}" data-tir="${r.total_internal_reflection}">` +
+    `<div>Snell: η = η_i/η_t = ${r.eta_i}/${r.eta_t} = ${num(r.eta, 4)}; cos θi = −I·N = ${num(r.cos_i)}, ` +
+    `θi = <b>${num(r.theta_i, 2)}°</b>` + (r.critical_angle != null ? `, critical angle <b>${num(r.critical_angle, 2)}°</b>` : ", no critical angle (η_i ≤ η_t)") +
+    `</div><svg width="${W}" height="${H}" viewBox="0 0 ${W} ${H}">${svg.join("")}</svg><div class="verdict">${verdict}</div></div>`;
 }
 function escapeHtml(s) {
   return s.replace(/[&<>"]/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;" })[c]);
@@ -329,17 +477,28 @@ async function explain(x, y) {
     (e.lens_point ? `<p>Through the lens at ${fmt(e.lens_point)} (right, up from its centre)</p>` : "") +
     (e.time != null ? `<p>At the shutter's instant ${e.time.toFixed(4)} frames after the frame's start</p>` : "") +
     nodeHtml(e.tree);
-  // The sample's rays over the picture.
+  // The sample's rays over the picture, its shadow feelers too: a blocked
+  // one red, ending in a cross where it was blocked.
   rctx.clearRect(0, 0, rays.width, rays.height);
-  const colours = { camera: "#ffd54f", reflected: "#4fc3f7", refracted: "#81c784" };
-  rctx.lineWidth = 1.5;
+  const colours = { camera: "#ffd54f", reflected: "#4fc3f7", refracted: "#81c784", feeler: "#fff59d" };
   for (const s of e.segments) {
-    rctx.strokeStyle = colours[s.kind];
+    const [ax, ay, bx, by] = s.screen;
+    rctx.strokeStyle = s.blocked ? "#ef5350" : colours[s.kind];
+    rctx.lineWidth = s.kind === "feeler" ? 1 : 1.5;
+    rctx.setLineDash(s.kind === "feeler" ? [3, 2] : []);
     rctx.beginPath();
-    rctx.moveTo(s.screen[0], s.screen[1]);
-    rctx.lineTo(s.screen[2], s.screen[3]);
+    rctx.moveTo(ax, ay);
+    rctx.lineTo(bx, by);
     rctx.stroke();
+    if (s.blocked) {
+      rctx.setLineDash([]);
+      rctx.beginPath();
+      rctx.moveTo(bx - 3, by - 3); rctx.lineTo(bx + 3, by + 3);
+      rctx.moveTo(bx + 3, by - 3); rctx.lineTo(bx - 3, by + 3);
+      rctx.stroke();
+    }
   }
+  rctx.setLineDash([]);
 }
 
 // The token is kept in a cookie now: out of the address bar.
