@@ -187,3 +187,58 @@ fn adaptive_keys_are_checked() {
     assert_eq!(ok.settings.adaptive, adaptive(0.3, 3, false));
     assert!(ok.settings.pixel_key().contains("adaptive=0.3/3"));
 }
+
+/// The feelers of a ray tree.
+fn feelers(node: &prism::render::explain::RayNode) -> usize {
+    let own: usize = node.lights.iter().map(|l| l.feelers).sum();
+    own + [&node.reflected, &node.refracted]
+        .into_iter()
+        .flatten()
+        .map(|n| feelers(n))
+        .sum::<usize>()
+}
+
+#[test]
+fn explain_and_debug_views_trace_the_adaptive_samples() {
+    use prism::render::aov::{Aov, render_aov};
+    use prism::render::explain::explain;
+    let s = edges();
+    let settings = RenderSettings {
+        width: 40,
+        height: 25,
+        adaptive: adaptive(0.05, 2, true),
+        threads: Some(2),
+        ..s.settings
+    };
+    let film = render(&s, &settings, &()).unwrap().film;
+    let region = Region::full(settings.width, settings.height);
+    let feeler_view = render_aov(&s, &settings, region, Aov::Feelers, &())
+        .unwrap()
+        .film;
+    let mut counts = Vec::new();
+    for y in 0..settings.height {
+        for x in 0..settings.width {
+            // The pixel worked out alone is the render's, to the bit.
+            let first = explain(&s, &settings, x, y, 0).unwrap();
+            assert_eq!(first.pixel_radiance, film.get(x, y).to_array(), "{x},{y}");
+            let n = first.samples as usize;
+            // Corners and centre at least; at most every point of the
+            // pixel's lattice (spacing 1/8 at depth 2: 9 × 9).
+            assert!((5..=81).contains(&n), "{n}");
+            counts.push(n);
+            if n > 5 && counts.iter().filter(|&&c| c > 5).count() <= 3 {
+                // Every sample can be explained, and no more; their
+                // feelers are the debug view's count.
+                let trees: Vec<_> = (0..n)
+                    .map(|k| explain(&s, &settings, x, y, k).unwrap())
+                    .collect();
+                let total: usize = trees.iter().map(|e| feelers(&e.tree)).sum();
+                assert_eq!(feeler_view.get(x, y).x, total as f64, "{x},{y}");
+                let past = explain(&s, &settings, x, y, n).unwrap_err();
+                assert!(past.contains("adaptive"), "{past}");
+            }
+        }
+    }
+    assert!(counts.contains(&5), "no flat pixel");
+    assert!(counts.iter().any(|&n| n > 5), "no pixel was subdivided");
+}

@@ -15,19 +15,22 @@
 //! threads or two farm regions is the same sample, and any region split
 //! gives the whole render's bits. A tile keeps its samples while a row of
 //! pixels and the row below it are rendered, so neighbours share the work;
-//! the cache only saves work, it never changes a value.
+//! the cache only saves work, it never changes a value. For the same
+//! reason one pixel can be worked out alone, its samples traced afresh,
+//! and equal its value in the render: what `prism explain` and the debug
+//! views do, through [`pixel_recorded`].
 
 use std::collections::HashMap;
 use std::ops::Range;
 
 use glam::{DVec2, DVec3};
 
-use super::frame_seed;
+use super::{RecordedPixel, frame_seed};
 use crate::math::rng::{PixelRng, splitmix64};
 use crate::math::sampling::concentric_disk;
 use crate::scene::Scene;
 use crate::settings::{Adaptive, RenderSettings};
-use crate::shading::whitted::Whitted;
+use crate::shading::whitted::{Recorder, Whitted};
 use crate::stats::RayStats;
 
 /// The samples a tile has traced, by lattice coordinates: those of the
@@ -63,10 +66,67 @@ pub fn render_row_adaptive(
         seed: lattice_seed(settings),
         values: &mut samples.values,
         stats,
+        recorder: &mut (),
+        record: None,
+        traced: 0,
+        recorded: None,
     };
     for x in xs {
         out.push(lattice.square(x << shift, top, 1 << shift, 0));
     }
+}
+
+/// Pixel (x, y) alone, equal to its value in the render, with its samples
+/// (the lattice points it traces, corners and centres, in the order the
+/// subdivision reaches them) told to `recorder`: sample `record`, or every
+/// one when `None`. `samples` in the result is how many it traced.
+#[allow(clippy::too_many_arguments)]
+pub fn pixel_recorded<R: Recorder>(
+    scene: &Scene,
+    tracer: &Whitted,
+    settings: &RenderSettings,
+    adaptive: Adaptive,
+    x: u32,
+    y: u32,
+    stats: &mut RayStats,
+    record: Option<usize>,
+    recorder: &mut R,
+) -> RecordedPixel {
+    let shift = lattice_shift(adaptive);
+    let mut values = HashMap::new();
+    let mut lattice = Lattice {
+        scene,
+        tracer,
+        settings,
+        adaptive,
+        seed: lattice_seed(settings),
+        values: &mut values,
+        stats,
+        recorder,
+        record,
+        traced: 0,
+        recorded: None,
+    };
+    let pixel = lattice.square(x << shift, y << shift, 1 << shift, 0);
+    let traced = lattice.traced;
+    let recorded = lattice.recorded.unwrap_or_default();
+    RecordedPixel {
+        pixel,
+        sample: recorded.radiance,
+        lens: recorded.lens,
+        time: recorded.time,
+        samples: traced,
+    }
+}
+
+/// What one lattice sample saw.
+#[derive(Clone, Copy, Default)]
+struct LatticeSample {
+    radiance: DVec3,
+    /// Its point on the lens, in world units (see `camera_ray`).
+    lens: Option<DVec2>,
+    /// Its instant, in frames after the frame's start.
+    time: Option<f64>,
 }
 
 /// The lattice's spacing as a power of two per pixel: `depth` cuts, and
@@ -81,7 +141,7 @@ fn lattice_seed(settings: &RenderSettings) -> u64 {
     splitmix64(frame_seed(settings.seed, settings.frame) ^ 0x6164_6170_7469_7665)
 }
 
-struct Lattice<'a, 'b> {
+struct Lattice<'a, 'b, R> {
     scene: &'a Scene,
     tracer: &'a Whitted<'a>,
     settings: &'a RenderSettings,
@@ -89,9 +149,16 @@ struct Lattice<'a, 'b> {
     seed: u64,
     values: &'b mut HashMap<(u32, u32), DVec3>,
     stats: &'b mut RayStats,
+    /// Hears the samples `record` picks (all of them when `None`).
+    recorder: &'b mut R,
+    record: Option<usize>,
+    /// Samples traced so far.
+    traced: usize,
+    /// The last sample recorded.
+    recorded: Option<LatticeSample>,
 }
 
-impl Lattice<'_, '_> {
+impl<R: Recorder> Lattice<'_, '_, R> {
     /// The value of the square with lattice corner (i, j) and side `side`
     /// (in lattice units) at cut `level`.
     fn square(&mut self, i: u32, j: u32, side: u32, level: u32) -> DVec3 {
@@ -120,35 +187,55 @@ impl Lattice<'_, '_> {
         if let Some(&v) = self.values.get(&(i, j)) {
             return v;
         }
-        let v = lattice_sample(
-            self.scene,
-            self.tracer,
-            self.settings,
-            self.adaptive,
-            self.seed,
-            i,
-            j,
-            self.stats,
-        );
-        self.values.insert((i, j), v);
-        v
+        let k = self.traced;
+        self.traced += 1;
+        let (scene, tracer, settings) = (self.scene, self.tracer, self.settings);
+        let (adaptive, seed) = (self.adaptive, self.seed);
+        let sample = if self.record.is_none_or(|r| r == k) {
+            let s = lattice_sample(
+                scene,
+                tracer,
+                settings,
+                adaptive,
+                seed,
+                (i, j),
+                self.stats,
+                self.recorder,
+            );
+            self.recorded = Some(s);
+            s
+        } else {
+            lattice_sample(
+                scene,
+                tracer,
+                settings,
+                adaptive,
+                seed,
+                (i, j),
+                self.stats,
+                &mut (),
+            )
+        };
+        self.values.insert((i, j), sample.radiance);
+        sample.radiance
     }
 }
 
 /// The radiance through lattice point (i, j): from its own stream, with
 /// (if asked) a jitter of up to half the spacing of the coarsest level the
-/// point belongs to, and with a lens a point of the lens drawn after it.
+/// point belongs to, and with a lens a point of the lens drawn after it;
+/// its ray tree told to `recorder`.
 #[allow(clippy::too_many_arguments)]
-fn lattice_sample(
+fn lattice_sample<R: Recorder>(
     scene: &Scene,
     tracer: &Whitted,
     settings: &RenderSettings,
     adaptive: Adaptive,
     seed: u64,
-    i: u32,
-    j: u32,
+    (i, j): (u32, u32),
     stats: &mut RayStats,
-) -> DVec3 {
+    recorder: &mut R,
+) -> LatticeSample {
     let mut rng = PixelRng::new(seed, i, j);
     let shift = lattice_shift(adaptive);
     let scale = f64::from(1u32 << shift);
@@ -163,21 +250,30 @@ fn lattice_sample(
     }
     let (x, y) = (point.x / scale, point.y / scale);
     // An open shutter: the point's own time, uniform over the exposure.
-    let scene = if scene.motion.is_empty() {
-        scene
+    let (scene, instant) = if scene.motion.is_empty() {
+        (scene, None)
     } else {
         let n = scene.motion.len();
-        &scene.motion[((rng.uniform() * n as f64) as usize).min(n - 1)]
+        let k = ((rng.uniform() * n as f64) as usize).min(n - 1);
+        (&scene.motion[k], Some(k))
     };
     let tracer = tracer.for_scene(scene);
     let camera = &scene.camera;
-    let ray = if camera.lens.is_some() {
-        let disk = concentric_disk(DVec2::new(rng.uniform(), rng.uniform()));
-        camera.ray_through_lens(x, y, settings.width, settings.height, disk)
-    } else {
-        camera.ray(x, y, settings.width, settings.height)
+    let (ray, lens) = match camera.lens {
+        Some(lens) => {
+            let disk = concentric_disk(DVec2::new(rng.uniform(), rng.uniform()));
+            let ray = camera.ray_through_lens(x, y, settings.width, settings.height, disk);
+            (ray, Some(lens.radius * disk))
+        }
+        None => (camera.ray(x, y, settings.width, settings.height), None),
     };
-    tracer.radiance(&ray, &mut rng, stats)
+    LatticeSample {
+        radiance: tracer.radiance_recorded(&ray, &mut rng, stats, recorder),
+        lens,
+        time: instant
+            .zip(settings.shutter)
+            .map(|(k, shutter)| shutter.instant(k as u32)),
+    }
 }
 
 /// Whether the four corners differ by more than `threshold` in some

@@ -22,7 +22,7 @@ use crate::shading::whitted::{RayKind, Recorder, Stop, Whitted, WhittedSettings}
 pub mod steps;
 pub use steps::{
     EdgeStep, IntersectionSteps, PlaneSteps, PolygonSteps, ReflectionSteps, RefractionSteps,
-    SphereSteps,
+    SphereSteps, TriangleSteps,
 };
 
 /// One ray of the tree and everything at its end.
@@ -175,7 +175,9 @@ pub fn explain(
         ));
     }
     let samples = crate::math::sampling::Strata::new(settings.spp as usize).len();
-    if sample >= samples {
+    // Under adaptive anti-aliasing the count is known once the pixel is
+    // traced (below).
+    if settings.adaptive.is_none() && sample >= samples {
         return Err(format!(
             "sample {sample}: the pixel has {samples} samples (0 to {})",
             samples - 1
@@ -207,10 +209,18 @@ pub fn explain(
         Some(sample),
         &mut recorder,
     );
+    if sample >= recorded.samples {
+        return Err(format!(
+            "sample {sample}: under adaptive anti-aliasing the pixel traced {} samples \
+             (0 to {}: its corners and centres, in the order the subdivision reached them)",
+            recorded.samples,
+            recorded.samples - 1
+        ));
+    }
     Ok(Explanation {
         pixel: [x, y],
         sample,
-        samples: samples as u32,
+        samples: recorded.samples as u32,
         radiance: recorded.sample.to_array(),
         pixel_radiance: recorded.pixel.to_array(),
         lens_point: recorded.lens.map(|p| p.to_array()),

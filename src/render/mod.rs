@@ -281,10 +281,16 @@ pub struct RecordedPixel {
     /// The instant it saw, in frames after the frame's start; `None`
     /// without an open shutter on a moving scene.
     pub time: Option<f64>,
+    /// How many samples the pixel traced: `spp` (rounded to its strata),
+    /// or under adaptive anti-aliasing the lattice points its
+    /// subdivision reached.
+    pub samples: usize,
 }
 
 /// [`render_pixel`], with sample `recorded` (every sample: `None`) traced
-/// through `recorder`.
+/// through `recorder`; under adaptive anti-aliasing the samples are the
+/// pixel's lattice points (see [`adaptive::pixel_recorded`]), and the
+/// pixel is its value in the render.
 #[allow(clippy::too_many_arguments)]
 pub fn render_pixel_recorded<R: Recorder>(
     scene: &Scene,
@@ -296,6 +302,11 @@ pub fn render_pixel_recorded<R: Recorder>(
     recorded: Option<usize>,
     recorder: &mut R,
 ) -> RecordedPixel {
+    if let Some(a) = settings.adaptive {
+        return adaptive::pixel_recorded(
+            scene, tracer, settings, a, x, y, stats, recorded, recorder,
+        );
+    }
     let mut rng = PixelRng::new(frame_seed(settings.seed, settings.frame), x, y);
     let strata = Strata::new(settings.spp as usize);
     let spp = strata.len();
@@ -307,6 +318,7 @@ pub fn render_pixel_recorded<R: Recorder>(
         sample: DVec3::ZERO,
         lens: None,
         time: None,
+        samples: spp,
     };
     for s in 0..spp {
         let instant = instant_of(scene, s, spp, time_key, &mut rng);
