@@ -64,22 +64,25 @@ fn main() {
             run(RenderSettings { spp, ..base }),
         );
     }
-    for depth in [1, 2, 3] {
-        for threshold in [0.4, 0.2, 0.1, 0.05, 0.025, 0.0125] {
-            let adaptive = Adaptive {
-                threshold,
-                depth,
-                jitter: false,
-            };
-            let out = run(RenderSettings {
-                adaptive: Some(adaptive),
-                ..base
-            });
-            print(
-                "adaptive",
-                format!("threshold {threshold} depth {depth}"),
-                out,
-            );
+    for jitter in [false, true] {
+        for depth in [1, 2, 3] {
+            for threshold in [0.4, 0.2, 0.1, 0.05, 0.025, 0.0125] {
+                let adaptive = Adaptive {
+                    threshold,
+                    depth,
+                    jitter,
+                };
+                let out = run(RenderSettings {
+                    adaptive: Some(adaptive),
+                    ..base
+                });
+                let jittered = if jitter { " jitter" } else { "" };
+                print(
+                    "adaptive",
+                    format!("threshold {threshold} depth {depth}{jittered}"),
+                    out,
+                );
+            }
         }
     }
 }
