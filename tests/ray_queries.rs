@@ -845,6 +845,7 @@ fn bad_arguments_name_themselves() {
         "tmax"
     );
     assert_eq!(argument(Rays::new(&o, &o, 2.0, 1.0).unwrap_err()), "tmax");
+    assert_eq!(argument(Rays::new(&o, &o, -1.0, 1.0).unwrap_err()), "tmin");
     let batch = Rays::new(&o, &[0.0, 0.0, -1.0], 0.0, f64::INFINITY).unwrap();
     for threads in [0, 100_000] {
         let e = scene.intersect(&batch, &options(threads)).unwrap_err();

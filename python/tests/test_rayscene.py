@@ -231,6 +231,7 @@ BAD = [
     ("directions count", lambda s, v, f, o, d: s.all_intersections(o, d[:-1]), "directions"),
     ("tmin NaN", lambda s, v, f, o, d: s.intersect(o, d, tmin=np.nan), "tmin"),
     ("tmin text", lambda s, v, f, o, d: s.intersect(o, d, tmin="a"), "tmin"),
+    ("tmin negative", lambda s, v, f, o, d: s.intersect(o, d, tmin=-1), "tmin"),
     ("tmax below tmin", lambda s, v, f, o, d: s.intersect(o, d, tmin=2, tmax=1), "tmax"),
     ("threads zero", lambda s, v, f, o, d: s.intersect(o, d, threads=0), "threads"),
     ("threads huge", lambda s, v, f, o, d: s.contains(o, threads=10**6), "threads"),

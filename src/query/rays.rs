@@ -25,8 +25,8 @@ pub struct Rays<'a> {
 impl<'a> Rays<'a> {
     /// Checks the batch: the same whole number of rays (at least one) in
     /// both slices, coordinates finite and within ±1e30 (the scene's
-    /// bound), no direction shorter than 1e-30 in every component, t_min
-    /// below t_max and neither NaN (t_min may be −∞, t_max +∞).
+    /// bound), no direction shorter than 1e-30 in every component, and
+    /// 0 ≤ t_min < t_max (t_max may be +∞).
     pub fn new(
         origins: &'a [f64],
         directions: &'a [f64],
@@ -51,8 +51,13 @@ impl<'a> Rays<'a> {
                 format!("row {k} is zero (every component below {MIN_LENGTH:e})"),
             ));
         }
-        if t_min.is_nan() {
-            return Err(QueryError::invalid("tmin", "is NaN"));
+        // The trees are walked ahead of the origin only (as the
+        // renderer's rays go).
+        if t_min.is_nan() || t_min < 0.0 {
+            return Err(QueryError::invalid(
+                "tmin",
+                format!("must be 0 or more, got {t_min}"),
+            ));
         }
         if t_max.is_nan() {
             return Err(QueryError::invalid("tmax", "is NaN"));

@@ -17,7 +17,6 @@ use crate::accel::PACKET;
 use crate::geometry::Aabb;
 use crate::geometry::cuboid::slab_interval;
 use crate::geometry::mesh::MeshHit;
-use crate::geometry::triangle::{WatertightRay, triangle_hit};
 
 /// Rays per task, and between checks of the cancel flag.
 const CHUNK: usize = 1024;
@@ -317,33 +316,14 @@ impl RayScene {
                 continue;
             }
             let (o, d) = placed.local(origin, direction);
-            if t_min >= 0.0 {
-                // The renderer's traversal (its SIMD box tests), which
-                // looks ahead of the origin only.
-                placed.mesh.each_hit(o, d, t_min, t_max, |triangle, h| {
-                    each(Crossing {
-                        t: h.t,
-                        mesh: id as u32,
-                        triangle,
-                        barycentric: h.barycentric,
-                    });
+            placed.mesh.each_hit(o, d, t_min, t_max, |triangle, h| {
+                each(Crossing {
+                    t: h.t,
+                    mesh: id as u32,
+                    triangle,
+                    barycentric: h.barycentric,
                 });
-                continue;
-            }
-            let ray = WatertightRay::new(o, d);
-            placed.mesh.visit_triangles(
-                |b| meets(b, o, d, t_min, t_max),
-                |triangle, [a, b, c]| {
-                    if let Some(h) = triangle_hit(&ray, a, b, c, t_min, t_max) {
-                        each(Crossing {
-                            t: h.t,
-                            mesh: id as u32,
-                            triangle,
-                            barycentric: h.barycentric,
-                        });
-                    }
-                },
-            );
+            });
         }
     }
 }

@@ -103,7 +103,7 @@ class RayScene:
     Rays are (N, 3) arrays of ``origins`` and ``directions`` (any length,
     not zero; t is measured in the direction's length, so a hit lies at
     ``origin + t * direction``), searched for hits with t in
-    (``tmin``, ``tmax``).
+    (``tmin``, ``tmax``), 0 <= tmin < tmax.
     """
 
     def __init__(self, vertices: Optional[ArrayLike] = None, faces: Optional[ArrayLike] = None,
