@@ -14,7 +14,12 @@
 #  4. a render border, an animation, cancel and error reports
 #     (scripts/blender/engine_probe.py);
 #  5. F12 in Blender's interface under xvfb (scripts/blender/ui_render.py),
-#     checked against `prism render` of its export.
+#     checked against `prism render` of its export;
+#  6. issue 29: the add-on installed by docs/blender.md's headless command;
+#     a spot's pool against Cycles' (spot_profile.py), the render's
+#     geometry (glb_mesh.py), depth of field (dof_probe.py), a checker
+#     floor, lens shift, a newcomer's three scenes, the warnings, and
+#     "Keep Files In" refused on an unsaved file.
 # Work files: target/blender-test/. With --update-data the exports are
 # copied to tests/data/blender/ (commit them, with the Blender version).
 set -euo pipefail
@@ -34,18 +39,34 @@ ZIP=$PWD/target/prism_render.zip
 WORK=$PWD/target/blender-test
 rm -rf "$WORK"
 mkdir -p "$WORK"
-# The add-on is installed here, not into the user's own Blender.
-export BLENDER_USER_SCRIPTS=$WORK/user-scripts
+# The add-on is installed here, not into the user's own Blender, and its
+# preferences saved here (Debian's Blender 3.4 reads its preferences from
+# $XDG_CONFIG_HOME/blender, not from $BLENDER_USER_CONFIG).
+export BLENDER_USER_SCRIPTS=$WORK/user-scripts XDG_CONFIG_HOME=$WORK/config
+# An add-on folder that exists at start-up is on Blender's module path.
+mkdir -p "$BLENDER_USER_SCRIPTS/addons"
 blend() { blender --background --python-exit-code 1 "$@" >>"$WORK/blender.log" 2>&1 || {
     echo "blender failed: $*; the end of $WORK/blender.log:" >&2; tail -30 "$WORK/blender.log" >&2; exit 1; }; }
 start=$(date +%s)
 blender --version | head -1
+# The headless install of docs/blender.md ("Install"), word for word: the
+# renders below use the preferences it saves (use_addon.py checks them).
+blender -b --python-expr "import bpy, sys; zip_path, prism = sys.argv[sys.argv.index('--') + 1:]; \
+bpy.ops.preferences.addon_install(filepath=zip_path, overwrite=True); \
+bpy.ops.preferences.addon_enable(module='prism_render'); \
+bpy.context.preferences.addons['prism_render'].preferences.prism_path = prism; \
+bpy.ops.wm.save_userpref()" -- "$ZIP" "$PRISM" >>"$WORK/blender.log" 2>&1
 blend --factory-startup --python scripts/blender/make_scenes.py -- "$WORK"
-for name in probe_point probe_spot probe_sun probe_area probe_area_disk probe_area45 default default_ortho default_portrait showcase; do
+# Prints the lines of $WORK/blender.log from line $1 on that start with $2.
+since() { tail -n "+$1" "$WORK/blender.log" | grep "^$2" || true; }
+for name in probe_point probe_spot probe_sun probe_area probe_area_disk probe_area45 probe_spot_profile probe_furnace \
+        default default_ortho default_portrait default_shift default_ortho_shift showcase \
+        newcomer_checker newcomer_dof newcomer_spot newcomer_area newcomer_area_side; do
     dir=$WORK/$name
     mkdir -p "$dir"
     spp=1
-    case $name in default*|showcase) spp=4 ;; esac
+    case $name in default*|showcase|newcomer_*) spp=4 ;; esac
+    [ "$name" = newcomer_dof ] && spp=16  # a lens wants samples
     # Through the add-on, as `blender -b FILE -E PRISM -f 1` does.
     blend "$WORK/$name.blend" --python scripts/blender/use_addon.py \
         -E PRISM -o "$dir/blender_#" -f 1 -- "$ZIP" "$PRISM" "$dir/export" "$spp"
@@ -57,8 +78,9 @@ for name in probe_point probe_spot probe_sun probe_area probe_area_disk probe_ar
     "$PRISM" render "$dir/export/scene.toml" -o "$dir/prism.exr" --quiet
     blend --factory-startup --python scripts/blender/compare.py -- "$dir/blender_1.exr" "$dir/prism.exr"
     grep "^compare:" "$WORK/blender.log" | tail -1 | sed "s/^/$name: /"
+    mark=$(( $(wc -l <"$WORK/blender.log") + 1 ))
     blend "$WORK/$name.blend" --python scripts/blender/cycles_probe.py -- "$dir/prism.exr" "$dir" "$name"
-    grep "^cycles_probe:" "$WORK/blender.log" | tail -2
+    since "$mark" "cycles_probe:"
     case $name in probe_*|default) ;; *) continue ;; esac
     # Lights: Scene File: the add-on writes the lights in its own units,
     # matched to Cycles: asserted within 5 % on the probes now.
@@ -66,10 +88,56 @@ for name in probe_point probe_spot probe_sun probe_area probe_area_disk probe_ar
         -E PRISM -o "$dir/scene_lights_#" -f 1 -- "$ZIP" "$PRISM" "$dir/export-scene-lights" "$spp" - SCENE
     tolerance=()
     [ "$name" = default ] || tolerance=(0.05)
+    mark=$(( $(wc -l <"$WORK/blender.log") + 1 ))
     blend "$WORK/$name.blend" --python scripts/blender/cycles_probe.py -- \
         "$dir/scene_lights_1.exr" "$dir" "$name (Lights: Scene File)" "${tolerance[@]}"
-    grep "^cycles_probe:" "$WORK/blender.log" | tail -2
+    since "$mark" "cycles_probe:"
 done
+# Issue 29. The spot's pool as Cycles lights it: its core and
+# half-brightness widths within 3 % of Cycles', in either lights mode.
+mark=$(( $(wc -l <"$WORK/blender.log") + 1 ))
+for image in prism scene_lights_1; do
+    blend --factory-startup --python scripts/blender/spot_profile.py -- \
+        "$WORK/probe_spot_profile/cycles.exr" "$WORK/probe_spot_profile/$image.exr" "spot ($image)"
+done
+since "$mark" "spot_profile:"
+# The render's geometry: the cube's Subdivision modifier (viewport 0,
+# render 2) exported at level 2: 6 x 16 quads, 98 vertices;
+python3 scripts/blender/glb_mesh.py "$WORK/newcomer_spot/export/scene.glb" "subdivided cube" 192 98
+# and the emitting ball, disabled in viewports but not in renders (a UV
+# sphere of 32 segments and 16 rings: 960 triangles, 482 vertices).
+python3 scripts/blender/glb_mesh.py "$WORK/newcomer_spot/export/scene.glb" emitter 960 482
+# Depth of field: blurred out of focus as Cycles blurs it, sharp in focus.
+mark=$(( $(wc -l <"$WORK/blender.log") + 1 ))
+blend "$WORK/newcomer_dof.blend" --python scripts/blender/dof_probe.py -- \
+    "$WORK/newcomer_checker/cycles.exr" "$WORK/newcomer_checker/prism.exr" \
+    "$WORK/newcomer_dof/cycles.exr" "$WORK/newcomer_dof/prism.exr"
+since "$mark" "dof_probe:"
+# What Prism cannot show is said, once each: the nodes the export drops
+# (a Noise Texture on the cube), motion blur, a sun's angle.
+for warning in "material 'vertex colours': the glTF export drops Noise Texture" \
+        "motion blur is not carried" "light 'sun': a sun's angle is not carried"; do
+    if ! grep -qF "$warning" "$WORK/blender.log"; then
+        echo "FAIL: no warning \"$warning\" in $WORK/blender.log" >&2
+        exit 1
+    fi
+done
+# "Keep Files In" relative on an unsaved file is refused, not the working directory.
+unsaved=$WORK/unsaved
+mkdir -p "$unsaved"
+(cd "$unsaved" && blender -b --python-expr "import bpy, sys
+scene = bpy.context.scene
+scene.render.engine = 'PRISM'
+scene.prism.export_dir = 'kept'
+try:
+    bpy.ops.render.render()
+except RuntimeError as e:
+    print('unsaved:', e)" >>"$WORK/blender.log" 2>&1) || true  # Blender exits 1 after the error
+if [ -e "$unsaved/kept" ] || ! grep -q "^unsaved:.*not saved yet" "$WORK/blender.log"; then
+    echo "FAIL: Keep Files In on an unsaved file was not refused" >&2
+    exit 1
+fi
+echo "unsaved file: Keep Files In refused"
 # A render border (cropped): Prism renders the border alone, and it must be
 # that part of the whole frame's render above.
 border=$WORK/border
@@ -99,7 +167,7 @@ grep "^engine_probe:" "$WORK/blender.log"
 # render job's thread and hands the export to the main thread.
 ui=$WORK/ui
 mkdir -p "$ui"
-timeout 300 xvfb-run -a -s "-screen 0 1280x800x24" blender --factory-startup \
+timeout 300 xvfb-run -a -s "-screen 0 1280x800x24" blender \
     "$WORK/default.blend" --python scripts/blender/use_addon.py --python scripts/blender/ui_render.py \
     -- "$ZIP" "$PRISM" "$ui/export" 4 "$ui/f12.exr" >>"$WORK/blender.log" 2>&1 || true
 grep "^ui_render:" "$WORK/blender.log" || true

@@ -20,7 +20,8 @@ import threading
 
 import bpy
 
-from . import runner, scene_file, tiles
+from . import materials, runner, scene_file, tiles
+from .render_levels import render_levels
 from .text import escape_controls, report_lines
 
 ENGINE = "PRISM"
@@ -72,7 +73,8 @@ class PrismSettings(bpy.types.PropertyGroup):
     export_dir: bpy.props.StringProperty(
         name="Keep Files In",
         description="Folder for scene.glb, scene.toml and render.exr, kept after the render "
-                    "(render them again with `prism render scene.toml`); empty: a temporary folder",
+                    "(render them again with `prism render scene.toml`); empty: a temporary folder. "
+                    "A relative folder needs a saved .blend",
         default="", subtype="DIR_PATH")
 
 
@@ -95,6 +97,13 @@ class PrismRenderEngine(bpy.types.RenderEngine):
         keep = bool(settings.export_dir.strip())
         if keep:
             folder = bpy.path.abspath(settings.export_dir)
+            # A relative folder is relative to the .blend; an unsaved file
+            # has none, and the working directory is nobody's choice.
+            if not bpy.data.filepath and (settings.export_dir.startswith("//")
+                                          or not os.path.isabs(folder)):
+                return self._fail(
+                    f"Keep Files In ({settings.export_dir}) is relative to the .blend file, "
+                    "which is not saved yet: save it, or give an absolute folder")
             try:
                 os.makedirs(folder, exist_ok=True)
             except OSError as e:
@@ -121,8 +130,14 @@ class PrismRenderEngine(bpy.types.RenderEngine):
         except Exception as e:  # the exporter's own failure, whatever it is
             return self._fail(f"the glTF export failed: {e}")
         try:
+            if scene.prism.lights == "GLTF":
+                # The scene file carries spots with Cycles' cone.
+                scene_file.drop_gltf_spots(glb)
+            # Checker textures the exporter drops, and what else it drops.
+            material_notes = materials.carry(glb, depsgraph)
             text, notes = scene_file.scene_toml(depsgraph, "scene.glb", scene.prism)
-        except ValueError as e:
+            notes += material_notes
+        except (OSError, ValueError) as e:
             return self._fail(str(e))
         for note in notes:
             self.report({"WARNING"}, f"Prism: {escape_controls(note)}")
@@ -250,7 +265,9 @@ def export_gltf(scene, path, view_layer=None, lights=True):
     window = bpy.context.window or (windows[0] if len(windows) else None)
     if window is None:
         raise RuntimeError("Blender has no window for the glTF exporter to use")
-    with bpy.context.temp_override(
+    # The exporter reads the viewport's depsgraph; a render wants the
+    # render's modifier levels and visibility (render_levels.py).
+    with render_levels(scene, view_layer), bpy.context.temp_override(
         window=window, scene=scene, view_layer=view_layer, active_object=active, object=active,
         selected_objects=[o for o in view_layer.objects if o.select_get(view_layer=view_layer)],
     ):

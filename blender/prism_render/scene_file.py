@@ -19,6 +19,9 @@ import math
 # exposure when it shows the render (so it is never applied twice).
 HAS_EXPOSURE = True
 
+# `[camera] shift` (issue 29): Blender's lens shift as an off-centre frustum.
+HAS_SHIFT = True
+
 # The glTF loader's diffuse term is base colour / π (issue 15, item 1).
 # Only the lights this file writes ("Lights: Scene File") depend on it:
 # their intensities are matched to Cycles on a glTF material.
@@ -121,6 +124,7 @@ def camera_table(cam_obj, width, height, pixel_aspect):
     else:
         axis, sensor = ("horizontal" if wide else "vertical"), cam.sensor_width
     lines = ["[camera]"]
+    view_height = None
     if cam.type == "PERSP":
         fov = math.degrees(2.0 * math.atan(sensor / (2.0 * cam.lens)))
         lines.append('type = "perspective"')
@@ -137,11 +141,49 @@ def camera_table(cam_obj, width, height, pixel_aspect):
     lines.append(f"position = {toml_vector(to_y_up(position))}")
     lines.append(f"look_at = {toml_vector(to_y_up(look_at))}")
     lines.append(f"up = {toml_vector(to_y_up(up))}")
-    if cam.shift_x != 0.0 or cam.shift_y != 0.0:
-        notes.append(f"camera '{cam_obj.name}': lens shift is ignored (Prism has none)")
+    lines += lens_lines(cam_obj, notes)
+    if HAS_SHIFT and (cam.shift_x != 0.0 or cam.shift_y != 0.0):
+        # Blender shifts by its fitted side (the fov axis above); Prism's
+        # orthographic shift is in view heights.
+        scale = 1.0 if cam.type == "PERSP" else cam.ortho_scale / view_height
+        lines.append(f"shift = {toml_vector((cam.shift_x * scale, cam.shift_y * scale))}")
+    elif cam.shift_x != 0.0 or cam.shift_y != 0.0:
+        notes.append(f"camera '{cam_obj.name}': lens shift is ignored (this prism has none)")
     if tuple(pixel_aspect) != (1.0, 1.0):
         notes.append("a pixel aspect other than 1:1 is ignored")
     return lines, notes
+
+
+def lens_lines(cam_obj, notes):
+    """Depth of field as Prism's thin lens: Cycles' aperture radius,
+    focal length / (2 · f-stop) with the focal length in metres (Blender's
+    unit is the metre), and for an orthographic camera 1 / (2 · f-stop),
+    as Cycles takes it; the focus distance along the view axis, to the
+    focus object's origin when there is one (as Cycles measures it).
+    Polygonal bokeh (blades) and an aperture ratio are noted, not carried."""
+    cam = cam_obj.data
+    dof = cam.dof
+    if not dof.use_dof:
+        return []
+    fstop = max(dof.aperture_fstop, 1e-5)
+    radius = 1.0 / (2.0 * fstop) if cam.type == "ORTHO" else cam.lens * 1e-3 / (2.0 * fstop)
+    if dof.focus_object is not None:
+        m = cam_obj.matrix_world
+        forward = (m.to_3x3() @ _vec(0.0, 0.0, -1.0)).normalized()
+        target = dof.focus_object.matrix_world.translation
+        distance = abs(forward.dot(target - m.translation))
+    else:
+        distance = dof.focus_distance
+    if distance <= 0.0:
+        notes.append(f"camera '{cam_obj.name}': a focus distance of 0 is a pinhole (everything sharp)")
+        return []
+    if dof.aperture_blades >= 3:
+        notes.append(f"camera '{cam_obj.name}': the aperture's {dof.aperture_blades} blades are not "
+                     "carried; Prism's lens is round")
+    if abs(dof.aperture_ratio - 1.0) > 1e-6:
+        notes.append(f"camera '{cam_obj.name}': an aperture ratio other than 1 is not carried")
+    return [f"aperture = {toml_number(radius)}",
+            f"focus_distance = {toml_number(distance)}"]
 
 
 def _vec(*c):
@@ -149,27 +191,36 @@ def _vec(*c):
     return Vector(c)
 
 
-def light_tables(depsgraph):
-    """Blender's lights as scene-file lights ("Lights: Scene File", the
-    .glb then has none), a light with a radius (`shadow_soft_size`) as a
-    sphere light for soft shadows. Intensities in the scene file's Whitted
-    units, matched to Cycles on a glTF material's diffuse surface: a point
-    light of P watts gives radiance albedo/π · P/(4π d²), a sun of E W/m²
-    albedo/π · E."""
-    lines, notes, names = [], [], {}
+def light_tables(depsgraph, everything=True):
+    """Blender's lights as scene-file lights. With `everything` ("Lights:
+    Scene File", the .glb then has none) every light, a light with a
+    radius (`shadow_soft_size`) as a sphere light for soft shadows;
+    otherwise ("Lights: glTF File") only what glTF cannot carry as Cycles
+    means it: area lights, and spot lights with Cycles' cone (the .glb's
+    spots are dropped, see drop_gltf_spots). Intensities in the scene
+    file's Whitted units, matched to Cycles on a glTF material's diffuse
+    surface: a point light of P watts gives radiance albedo/π · P/(4π d²),
+    a sun of E W/m² albedo/π · E. Returns (lines, notes); the lights
+    Prism cannot render are named in one note."""
+    lines, notes, names, skipped = [], [], {}, []
     over_pi = 1.0 if GLTF_DIFFUSE_OVER_PI else 1.0 / math.pi
     for inst in depsgraph.object_instances:
         obj = inst.object
         if obj.type != "LIGHT":
             continue
         light = obj.data
+        if not everything and light.type not in {"AREA", "SPOT"}:
+            if light.type == "SUN" and light.angle > 0:
+                notes.append(f"light '{obj.name}': a sun's angle is not carried (Prism has no "
+                             "soft directional light); hard shadows")
+            continue
         # Instanced lights share a name; a scene-file table may not.
         count = names[obj.name] = names.get(obj.name, 0) + 1
         name = toml_string(obj.name if count == 1 else f"{obj.name} {count}")
         m = inst.matrix_world
         colour = toml_vector(light.color)
         if light.type in {"POINT", "SPOT"}:
-            r = light.shadow_soft_size
+            r = light.shadow_soft_size if everything else 0.0
             spot = light.type == "SPOT" and r == 0
             if light.type == "SPOT" and r > 0:
                 notes.append(f"light '{obj.name}': a spot with a radius is a sphere light "
@@ -181,14 +232,12 @@ def light_tables(depsgraph):
             if r > 0:
                 lines.append(f"radius = {toml_number(r)}")
             if spot:
-                # The cone as Blender's glTF exporter writes it: the outer
-                # half-angle is half the spot size, the blend eats into it.
-                outer = light.spot_size / 2.0
-                inner = outer - outer * light.spot_blend
+                inner, outer = cycles_spot_cone(light.spot_size, light.spot_blend)
                 axis = (m.to_3x3() @ _vec(0.0, 0.0, -1.0)).normalized()
                 lines += [f"direction = {toml_vector(to_y_up(axis))}",
                           f"inner_angle = {toml_number(math.degrees(inner))}",
-                          f"outer_angle = {toml_number(math.degrees(outer))}"]
+                          f"outer_angle = {toml_number(math.degrees(outer))}",
+                          'cone_falloff = "cycles"']
             lines += [f"color = {colour}",
                       f"intensity = {toml_number(light.energy / (4.0 * math.pi) * over_pi)}",
                       'falloff = "inverse_square"', ""]
@@ -199,14 +248,43 @@ def light_tables(depsgraph):
                       f"color = {colour}",
                       f"intensity = {toml_number(light.energy * over_pi)}", ""]
             if light.angle > 0:
-                notes.append(f"light '{obj.name}': a sun's angle is not carried; hard shadows")
+                notes.append(f"light '{obj.name}': a sun's angle is not carried (Prism has no "
+                             "soft directional light); hard shadows")
         elif light.type == "AREA":
             area_lines, area_notes = area_light_table(obj.name, name, light, m)
+            if not area_lines:
+                skipped.append(f"'{obj.name}' (an area light of size 0)")
             lines += area_lines
             notes += area_notes
         else:
-            notes.append(f"light '{obj.name}': {light.type.lower()} lights are not supported; skipped")
+            skipped.append(f"'{obj.name}' ({light.type.lower()})")
+    if skipped:
+        notes.append("lights Prism cannot render, skipped: " + ", ".join(skipped))
     return lines, notes
+
+
+def cycles_spot_cone(size, blend):
+    """Blender's spot of `size` (the cone's full angle) and `blend` as the
+    scene file's cone with `cone_falloff = "cycles"`: (inner, outer)
+    half-angles in radians. Cycles lights cos θ · smoothstep((cos θ −
+    cos(size/2)) / spot_smooth), spot_smooth = (1 − cos(size/2))·blend,
+    so the band ends (the inner cone) where cos θ = cos(size/2) + spot_smooth."""
+    outer = 0.5 * size
+    cos_outer = math.cos(outer)
+    cos_inner = min(1.0, cos_outer + (1.0 - cos_outer) * max(0.0, blend))
+    return math.acos(cos_inner), outer
+
+
+def drop_gltf_spots(glb_path):
+    """Removes the spot lights from the exported .glb ("Lights: glTF
+    File"): the scene file carries them with Cycles' cone instead of
+    glTF's. Returns how many were dropped."""
+    from . import glb
+    doc, binary = glb.read(glb_path)
+    dropped = glb.remove_lights(doc, lambda light: light.get("type") != "spot")
+    if dropped:
+        glb.write(glb_path, doc, binary)
+    return dropped
 
 
 def area_light_table(label, name, light, m):
@@ -244,28 +322,12 @@ def area_light_table(label, name, light, m):
     if spread < math.pi - 1e-6:
         notes.append(f"light '{label}': a spread below 180° is not carried; it emits as a Lambertian area")
     if area <= 0.0:
-        return [], [f"light '{label}': an area light of size 0 is skipped"]
+        return [], []
     over_pi = 1.0 if GLTF_DIFFUSE_OVER_PI else 1.0 / math.pi
     lines += [f"position = {toml_vector(to_y_up(m.translation))}",
               f"color = {toml_vector(light.color)}",
               f"intensity = {toml_number(light.energy / (4.0 * area) * over_pi)}",
               "samples = 16", ""]
-    return lines, notes
-
-
-def area_light_tables(depsgraph):
-    """The scene's area lights alone: glTF has no area light, so with
-    "Lights: glTF File" they come through the scene file."""
-    lines, notes, names = [], [], {}
-    for inst in depsgraph.object_instances:
-        obj = inst.object
-        if obj.type != "LIGHT" or obj.data.type != "AREA":
-            continue
-        count = names[obj.name] = names.get(obj.name, 0) + 1
-        name = toml_string(obj.name if count == 1 else f"{obj.name} {count}")
-        area_lines, area_notes = area_light_table(obj.name, name, obj.data, inst.matrix_world)
-        lines += area_lines
-        notes += area_notes
     return lines, notes
 
 
@@ -299,23 +361,24 @@ def scene_toml(depsgraph, glb_name, settings):
         lines.append(f"exposure = {toml_number(scene.view_settings.exposure)}")
     elif scene.view_settings.exposure != 0.0:
         notes.append("Prism's scene file has no exposure yet; Blender applies its exposure to the render it shows")
+    if render.use_motion_blur:
+        notes.append("motion blur is not carried: the scene file holds the glTF export of one "
+                     f"instant (frame {scene.frame_current}), and Prism cannot key the motion of "
+                     "objects inside it; rendered sharp")
     lines.append("")
     cam_lines, cam_notes = camera_table(
         scene.camera, width, height, (render.pixel_aspect_x, render.pixel_aspect_y))
     lines += cam_lines + [""]
     notes += cam_notes
-    if settings.lights == "SCENE":
-        light_lines, light_notes = light_tables(depsgraph)
-        lines += light_lines
-        notes += light_notes
-    else:
-        # glTF has no area light: those come through the scene file.
-        light_lines, light_notes = area_light_tables(depsgraph)
-        lines += light_lines
-        notes += light_notes
-        if any(o.type == "LIGHT" and o.data.type in {"POINT", "SPOT"} and o.data.shadow_soft_size > 0
-               for o in scene.objects):
-            notes.append("light radii (soft shadows) are carried with Lights: Scene File; hard shadows")
+    # glTF has no area light and another spot cone: with "Lights: glTF
+    # File" those come through the scene file too.
+    light_lines, light_notes = light_tables(depsgraph, everything=settings.lights == "SCENE")
+    lines += light_lines
+    notes += light_notes
+    if settings.lights != "SCENE" and any(
+            o.type == "LIGHT" and o.data.type in {"POINT", "SPOT"} and o.data.shadow_soft_size > 0
+            for o in scene.objects):
+        notes.append("light radii (soft shadows) are carried with Lights: Scene File; hard shadows")
     lines += [
         "[[objects]]",
         'type = "mesh"',

@@ -10,6 +10,19 @@
   default_anim: the same with the cube moving over frames 1 to 3;
   default_ortho: the same through an orthographic camera;
   default_portrait: the same at 36x64;
+  default_shift, default_ortho_shift: the same with lens shift (0.15, -0.1),
+    perspective and orthographic (the framing test of the off-centre frustum);
+  probe_furnace: a rough metal ball (roughness 0.5) alone under a grey
+    world, no lights: glossy reflection against Cycles' at its centre;
+  probe_spot_profile: the plane under a spot (size 45, blend 0.5) at 128x96,
+    its whole pool in view (spot_profile.py);
+  newcomer_checker, newcomer_dof, newcomer_spot, newcomer_area(_side): a
+    newcomer's three scenes (issue 29): glass and mirror balls on a Checker
+    Texture floor under a point light (and the same through a lens focused
+    on the mirror ball); a spot, an emissive ball and a vertex-coloured cube
+    under Subdivision at viewport 0 / render 2 (with a Noise Texture the
+    export drops, and motion blur on); two cameras, an area light and a sun
+    with an angle. Each has prism_probes, floor points lit directly;
   showcase: an 8x8 floor (a packed 16x16 checker image tiled 4 times by a
     Mapping node, so the exporter writes KHR_texture_transform), a mirror
     ball, a glass ball, a small emissive cube and a spot light, dark world;
@@ -51,7 +64,11 @@ camera = scene.camera
 camera.data.type = "ORTHO"
 camera.data.ortho_scale = 6.0
 bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "default_ortho.blend"), copy=True)
+camera.data.shift_x, camera.data.shift_y = 0.15, -0.1  # lens shift (issue 29)
+bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "default_ortho_shift.blend"), copy=True)
 camera.data.type = "PERSP"
+bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "default_shift.blend"), copy=True)
+camera.data.shift_x, camera.data.shift_y = 0.0, 0.0
 scene.render.resolution_x, scene.render.resolution_y = 36, 64
 bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "default_portrait.blend"), copy=True)
 
@@ -129,6 +146,48 @@ for name, shape, height, probe in (("area", "SQUARE", 4.0, None),
         del scene["prism_probe"]
     bpy.data.objects.remove(light, do_unlink=True)
 
+# The spot's profile (issue 29): a spot of size 45 degrees and blend 0.5
+# 4 above the plane, its whole pool in view at 128x96, so that
+# spot_profile.py can measure the pool's widths across the centre.
+light_data = bpy.data.lights.new("spot light", "SPOT")
+light_data.energy = 100.0
+light_data.shadow_soft_size = 0.0
+light_data.spot_size = math.radians(45.0)
+light_data.spot_blend = 0.5
+light = bpy.data.objects.new("spot light", light_data)
+light.location = (0.0, 0.0, 4.0)
+scene.collection.objects.link(light)
+scene.render.resolution_x, scene.render.resolution_y = 128, 96
+bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "probe_spot_profile.blend"), copy=True)
+scene.render.resolution_x, scene.render.resolution_y = 64, 48
+bpy.data.objects.remove(light, do_unlink=True)
+
+# A furnace (issue 29): a rough metal ball (metallic 1, base colour 0.8,
+# roughness 0.5) alone under a uniform grey world, no lights; its centre
+# reflects the world through the GGX lobe, 0.8 x the world in both.
+plane.hide_render = True
+bpy.ops.mesh.primitive_uv_sphere_add(radius=1.5, location=(0, 0, 0), segments=64, ring_count=32)
+furnace_ball = bpy.context.active_object
+bpy.ops.object.shade_smooth()
+m = bpy.data.materials.new("rough metal")
+m.use_nodes = True
+for key, value in {"Base Color": (0.8, 0.8, 0.8, 1.0), "Metallic": 1.0, "Roughness": 0.5}.items():
+    m.node_tree.nodes["Principled BSDF"].inputs[key].default_value = value
+# Multiscatter GGX: energy-conserving, as Prism's lobe is (each ray an
+# equal share of kr). Blender's default GGX scatters once and loses about
+# a tenth at roughness 0.5 (measured: Prism 1.107 of it, 1.017 of this).
+m.node_tree.nodes["Principled BSDF"].distribution = "MULTI_GGX"
+furnace_ball.data.materials.append(m)
+background.inputs["Color"].default_value = (0.5, 0.5, 0.5, 1.0)
+background.inputs["Strength"].default_value = 1.0
+scene.cycles.max_bounces = 8
+bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "probe_furnace.blend"), copy=True)
+scene.cycles.max_bounces = 0
+background.inputs["Color"].default_value = (0, 0, 0, 1)
+background.inputs["Strength"].default_value = 0.0
+bpy.data.objects.remove(furnace_ball, do_unlink=True)
+plane.hide_render = False
+
 # The showcase (issue 15): texture transform, mirror, glass, emission, spot.
 for obj in list(bpy.data.objects):
     if obj.type != "CAMERA":
@@ -203,4 +262,154 @@ camera.rotation_euler = (math.radians(62.0), 0.0, 0.0)
 # mirror ball's centre and 4.8 from the cube.
 scene["prism_probe"] = (0.5, -1.5, 0.0)
 bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "showcase.blend"), copy=True)
+
+# A newcomer's three scenes (issue 29), each at 64x48 with a dark world.
+# Cycles without diffuse bounces (mirror and glass bounces kept): Whitted's
+# light transport, so that the floor probes compare what Prism can show.
+scene.cycles.diffuse_bounces = 0
+
+
+def clear_scene():
+    for obj in list(bpy.data.objects):
+        bpy.data.objects.remove(obj, do_unlink=True)
+    for key in ("prism_probe", "prism_probes"):
+        if key in scene:
+            del scene[key]
+
+
+def diffuse(name, colour=(0.8, 0.8, 0.8, 1.0)):
+    m = bpy.data.materials.new(name)
+    m.use_nodes = True
+    b = m.node_tree.nodes["Principled BSDF"]
+    b.inputs["Base Color"].default_value = colour
+    b.inputs["Roughness"].default_value = 1.0
+    b.inputs["Specular"].default_value = 0.0
+    return m
+
+
+def add_camera(name, location, rotation):
+    data = bpy.data.cameras.new(name)
+    obj = bpy.data.objects.new(name, data)
+    obj.location, obj.rotation_euler = location, rotation
+    scene.collection.objects.link(obj)
+    return obj
+
+
+# 1: a glass and a mirror ball on a Checker Texture floor (the node's
+# defaults but scale 4: colours 0.8 and 0.2, Generated coordinates, which
+# on Blender's plane are its UV map) under a point light. The probes are
+# a light and a dark cell of the floor, lit directly.
+clear_scene()
+floor_material = diffuse("checker texture floor")
+nodes = floor_material.node_tree.nodes
+checker_node = nodes.new("ShaderNodeTexChecker")
+checker_node.inputs["Scale"].default_value = 4.0
+floor_material.node_tree.links.new(checker_node.outputs["Color"],
+                                   nodes["Principled BSDF"].inputs["Base Color"])
+bpy.ops.mesh.primitive_plane_add(size=8.0, location=(0, 0, 0))
+bpy.context.active_object.name = "floor"
+bpy.context.active_object.data.materials.append(floor_material)
+ball("mirror", (-1.0, 0.8, 0.6), **{"Base Color": (0.9, 0.9, 0.9, 1.0), "Metallic": 1.0, "Roughness": 0.0})
+ball("glass", (1.0, 0.8, 0.6), **{"Base Color": (1.0, 1.0, 1.0, 1.0), "Transmission": 1.0,
+                                  "IOR": 1.5, "Roughness": 0.0})
+light_data = bpy.data.lights.new("point light", "POINT")
+light_data.energy = 500.0
+light_data.shadow_soft_size = 0.0
+light = bpy.data.objects.new("point light", light_data)
+light.location = (0.0, -1.0, 4.0)
+scene.collection.objects.link(light)
+scene.camera = add_camera("camera", (0.0, -7.0, 4.0), (math.radians(62.0), 0.0, 0.0))
+# Cells are 2 units (8 / 4): the probes are a light and a dark cell
+# either side of x = 0.
+scene["prism_probes"] = [(-1.0, -1.0, 0.0), (1.0, -1.0, 0.0)]
+scene.render.resolution_x, scene.render.resolution_y = 128, 96  # edges for dof_probe.py
+bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "newcomer_checker.blend"), copy=True)
+# The same with depth of field: f/0.1 (a lens of radius 0.25) focused on the
+# mirror ball; the near floor spreads over about 4 pixels.
+dof = scene.camera.data.dof
+dof.use_dof, dof.aperture_fstop = True, 0.1
+dof.focus_object = bpy.data.objects["mirror"]
+bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "newcomer_dof.blend"), copy=True)
+scene.render.resolution_x, scene.render.resolution_y = 64, 48
+
+# 2: a spot light, an emissive object and a vertex-coloured cube under a
+# Subdivision modifier at viewport 0 / render 2, shaded smooth. The probe
+# is the floor straight under the spot.
+clear_scene()
+bpy.ops.mesh.primitive_plane_add(size=8.0, location=(0, 0, 0))
+bpy.context.active_object.name = "floor"
+bpy.context.active_object.data.materials.append(diffuse("floor"))
+bpy.ops.mesh.primitive_cube_add(size=1.2, location=(-0.6, 0.0, 0.6))  # in the spot's pool
+cube = bpy.context.active_object
+cube.name = "subdivided cube"
+subsurf = cube.modifiers.new("Subdivision", "SUBSURF")
+subsurf.levels, subsurf.render_levels = 0, 2
+bpy.ops.object.shade_smooth()
+colours = cube.data.color_attributes.new("Col", "FLOAT_COLOR", "POINT")
+for i, v in enumerate(cube.data.vertices):
+    colours.data[i].color = (0.9 if v.co.x > 0 else 0.2, 0.9 if v.co.y > 0 else 0.2, 0.5, 1.0)
+cube_material = diffuse("vertex colours")
+attribute = cube_material.node_tree.nodes.new("ShaderNodeVertexColor")
+attribute.layer_name = "Col"
+cube_material.node_tree.links.new(attribute.outputs["Color"],
+                                  cube_material.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+# A node the glTF export drops (named in the add-on's warning).
+noise = cube_material.node_tree.nodes.new("ShaderNodeTexNoise")
+cube_material.node_tree.links.new(noise.outputs["Fac"],
+                                  cube_material.node_tree.nodes["Principled BSDF"].inputs["Roughness"])
+cube.data.materials.append(cube_material)
+bpy.ops.mesh.primitive_uv_sphere_add(radius=0.4, location=(1.5, 1.5, 0.4))
+bpy.context.active_object.name = "emitter"
+# Disabled in viewports, not in renders: F12 renders it, so must the export.
+bpy.context.active_object.hide_viewport = True
+m = bpy.data.materials.new("glow")
+m.use_nodes = True
+m.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+m.node_tree.nodes["Principled BSDF"].inputs["Emission"].default_value = (0.2, 0.5, 1.0, 1.0)
+m.node_tree.nodes["Principled BSDF"].inputs["Emission Strength"].default_value = 3.0
+bpy.context.active_object.data.materials.append(m)
+light_data = bpy.data.lights.new("spot light", "SPOT")
+light_data.energy = 300.0
+light_data.shadow_soft_size = 0.0
+light_data.spot_size = math.radians(60.0)
+light_data.spot_blend = 0.3
+light = bpy.data.objects.new("spot light", light_data)
+light.location = (0.5, -1.5, 4.0)
+scene.collection.objects.link(light)
+scene.camera = add_camera("camera", (0.0, -7.0, 4.0), (math.radians(62.0), 0.0, 0.0))
+scene["prism_probes"] = [(0.5, -1.5, 0.0), (1.3, -1.5, 0.0)]
+scene.render.use_motion_blur = True  # nothing moves: Cycles is unchanged, Prism warns
+bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "newcomer_spot.blend"), copy=True)
+scene.render.use_motion_blur = False
+
+# 3: two cameras, an area light and a sun (with an angle, which Prism
+# warns about). The probes: the floor under the area light, and the floor
+# the sun alone lights.
+clear_scene()
+bpy.ops.mesh.primitive_plane_add(size=8.0, location=(0, 0, 0))
+bpy.context.active_object.name = "floor"
+bpy.context.active_object.data.materials.append(diffuse("floor"))
+bpy.ops.mesh.primitive_cube_add(size=1.0, location=(1.5, 1.0, 0.5))
+bpy.context.active_object.data.materials.append(diffuse("box", (0.6, 0.3, 0.2, 1.0)))
+light_data = bpy.data.lights.new("area light", "AREA")
+light_data.shape, light_data.size, light_data.size_y = "RECTANGLE", 1.0, 0.5
+light_data.energy = 200.0
+light = bpy.data.objects.new("area light", light_data)
+light.location = (-1.0, -1.0, 2.5)
+scene.collection.objects.link(light)
+light_data = bpy.data.lights.new("sun", "SUN")
+light_data.energy, light_data.angle = 0.5, math.radians(5.0)
+light = bpy.data.objects.new("sun", light_data)
+light.rotation_euler = (math.radians(30.0), 0.0, math.radians(40.0))
+scene.collection.objects.link(light)
+add_camera("side camera", (6.0, 0.0, 5.0), (math.radians(50.0), 0.0, math.radians(90.0)))
+scene.camera = add_camera("camera", (0.0, -7.0, 4.0), (math.radians(62.0), 0.0, 0.0))
+# Not where the view grazes the floor: there Cycles' Principled diffuse
+# (Disney's, retro-reflective at roughness 1) is brighter than Lambert's
+# (measured 0.85-0.90 at 68 degrees from the normal).
+scene["prism_probes"] = [(-1.0, -1.0, 0.0), (2.0, -2.5, 0.0)]
+bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "newcomer_area.blend"), copy=True)
+scene.camera = bpy.data.objects["side camera"]
+scene["prism_probes"] = [(-1.0, -1.0, 0.0), (2.0, -1.0, 0.0)]
+bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "newcomer_area_side.blend"), copy=True)
 print(f"make_scenes: wrote {sorted(os.listdir(out))}")
