@@ -73,12 +73,19 @@ pub trait Steps {
     fn root_taken(&mut self, t: Option<f64>) {
         let _ = t;
     }
-    /// The watertight triangle test: the 2D edge functions U, V, W of the
-    /// sheared vertices, their sum (the determinant; 0 when the signs were
-    /// mixed and the test stopped before it), and t when computed.
+    /// The watertight triangle test: the axes (kx, ky, kz; kz the ray
+    /// direction's largest component), the 2D edge functions U, V, W of
+    /// the sheared vertices, their sum (the determinant; not computed when
+    /// the signs are mixed) and t (when computed).
     #[inline(always)]
-    fn triangle(&mut self, edge_functions: DVec3, det: f64, t: Option<f64>) {
-        let _ = (edge_functions, det, t);
+    fn triangle(
+        &mut self,
+        axes: [usize; 3],
+        edge_functions: DVec3,
+        det: Option<f64>,
+        t: Option<f64>,
+    ) {
+        let _ = (axes, edge_functions, det, t);
     }
     /// Reflection: I·N and R = I − 2N(I·N).
     #[inline(always)]

@@ -9,6 +9,8 @@
 
 use glam::DVec3;
 
+use super::steps::Steps;
+
 /// A ray prepared for the watertight test: the axis permutation and shear
 /// depend only on the direction, so they are computed once per ray.
 #[derive(Clone, Copy, Debug)]
@@ -93,7 +95,29 @@ pub fn triangle_hit(
     t_min: f64,
     t_max: f64,
 ) -> Option<TriangleHit> {
-    permuted_test(ray, ray.axes.map(usize::from), a, b, c, t_min, t_max)
+    permuted_test(
+        ray,
+        ray.axes.map(usize::from),
+        a,
+        b,
+        c,
+        t_min,
+        t_max,
+        &mut (),
+    )
+}
+
+/// [`triangle_hit`], telling `steps` the axes, the edge functions U, V,
+/// W, their sum and t.
+#[inline(always)]
+pub fn triangle_hit_steps<S: Steps>(
+    ray: &WatertightRay,
+    [a, b, c]: [DVec3; 3],
+    t_min: f64,
+    t_max: f64,
+    steps: &mut S,
+) -> Option<TriangleHit> {
+    permuted_test(ray, ray.axes.map(usize::from), a, b, c, t_min, t_max, steps)
 }
 
 /// [`triangle_hit`] for a ray of permutation `P` (see
@@ -114,7 +138,7 @@ pub(crate) fn triangle_hit_as<const P: u8>(
     t_max: f64,
 ) -> Option<TriangleHit> {
     debug_assert_eq!(ray.permutation, P);
-    permuted_test(ray, AXES[usize::from(P)], a, b, c, t_min, t_max)
+    permuted_test(ray, AXES[usize::from(P)], a, b, c, t_min, t_max, &mut ())
 }
 
 /// [`triangle_hit`] by a branch per test to the form compiled for the
@@ -143,7 +167,8 @@ pub fn triangle_hit_dispatched(
 /// The watertight test with the ray's axes given: at run time, or as
 /// constants, which the compiler then folds into direct reads.
 #[inline(always)]
-fn permuted_test(
+#[allow(clippy::too_many_arguments)]
+fn permuted_test<S: Steps>(
     ray: &WatertightRay,
     [kx, ky, kz]: [usize; 3],
     a: DVec3,
@@ -151,6 +176,7 @@ fn permuted_test(
     c: DVec3,
     t_min: f64,
     t_max: f64,
+    steps: &mut S,
 ) -> Option<TriangleHit> {
     // The vertices relative to the origin, permuted to (kx, ky, kz): an
     // array lookup (the index masked into range, so unchecked) rather than
@@ -179,10 +205,12 @@ fn permuted_test(
     let negative = (u < 0.0) | (v < 0.0) | (w < 0.0);
     let positive = (u > 0.0) | (v > 0.0) | (w > 0.0);
     if negative & positive {
+        steps.triangle([kx, ky, kz], DVec3::new(u, v, w), None, None);
         return None;
     }
     let det = u + v + w;
     if det == 0.0 {
+        steps.triangle([kx, ky, kz], DVec3::new(u, v, w), Some(det), None);
         return None;
     }
     // Scaled distance, compared before the division.
@@ -191,6 +219,7 @@ fn permuted_test(
     let cz = ray.sz * cz;
     let t_scaled = u * az + v * bz + w * cz;
     let t = t_scaled / det;
+    steps.triangle([kx, ky, kz], DVec3::new(u, v, w), Some(det), Some(t));
     if !(t > t_min && t < t_max) {
         return None;
     }

@@ -357,5 +357,20 @@ fn test_lines(s: &IntersectionSteps) -> Vec<String> {
             }
         ));
     }
+    if let Some(t) = &s.triangle {
+        lines.push(format!(
+            "watertight test of triangle {}{}: axes (kx, ky, kz) = ({}, {}, {}); edge functions U, V, W = {} ({}), det = U + V + W = {}, t = {}, barycentrics {}",
+            t.triangle,
+            if t.object_space { " (mesh space)" } else { "" },
+            t.axes[0],
+            t.axes[1],
+            t.axes[2],
+            rgb(t.edge_functions),
+            t.signs,
+            t.det.map_or("-".into(), |d| format!("{d:.6}")),
+            t.t.map_or("-".into(), |t| format!("{t:.6}")),
+            t.barycentric.map_or("-".into(), rgb)
+        ));
+    }
     lines
 }

@@ -12,7 +12,8 @@ use serde::Serialize;
 
 use crate::accel::Shape;
 use crate::geometry::steps::{EdgeCase, Steps};
-use crate::geometry::{Hit, ShapeHit};
+use crate::geometry::triangle::{WatertightRay, triangle_hit_steps};
+use crate::geometry::{Hit, MeshInstance, ShapeHit};
 use crate::math::Ray;
 use crate::math::transcendental;
 use crate::scene::Scene;
@@ -37,7 +38,11 @@ pub struct StepLog {
     root_taken: Option<Option<f64>>,
     reflection: Option<(f64, DVec3)>,
     refraction: Option<(f64, f64, Option<DVec3>)>,
+    triangle: Option<WatertightSteps>,
 }
+
+/// What the watertight test told: axes, U V W, det, t.
+type WatertightSteps = ([usize; 3], DVec3, Option<f64>, Option<f64>);
 
 impl Steps for StepLog {
     fn plane(&mut self, n_dot_d: f64, t: Option<f64>) {
@@ -71,6 +76,9 @@ impl Steps for StepLog {
     fn refraction(&mut self, cos_i: f64, radicand: f64, t: Option<DVec3>) {
         self.refraction = Some((cos_i, radicand, t));
     }
+    fn triangle(&mut self, axes: [usize; 3], uvw: DVec3, det: Option<f64>, t: Option<f64>) {
+        self.triangle = Some((axes, uvw, det, t));
+    }
 }
 
 /// One object's intersection test against a ray, as the notes work it.
@@ -93,6 +101,35 @@ pub struct IntersectionSteps {
     pub polygon: Option<PolygonSteps>,
     /// The quadratic (spheres; ellipsoids in their unit sphere's space).
     pub sphere: Option<SphereSteps>,
+    /// The watertight test of the mesh's triangle hit (the object hit).
+    pub triangle: Option<TriangleSteps>,
+}
+
+/// The watertight ray-triangle test (Woop, Benthin, Wald 2013) of the
+/// triangle a mesh was hit on, in the mesh's own space.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct TriangleSteps {
+    /// The triangle's index in the model file's list.
+    pub triangle: u32,
+    /// Its corners a, b, c.
+    pub vertices: [[f64; 3]; 3],
+    /// The mesh is placed by a transform: corners, ray and edge functions
+    /// are in its own space (t the same in both).
+    pub object_space: bool,
+    /// The axes (kx, ky, kz): kz the direction's largest component, the
+    /// ray sheared to run along it.
+    pub axes: [&'static str; 3],
+    /// U, V, W: the 2D edge functions of the sheared corners (for the
+    /// edges bc, ca, ab).
+    pub edge_functions: [f64; 3],
+    /// `all ≥ 0` or `all ≤ 0` (the ray passes inside) or `mixed`.
+    pub signs: &'static str,
+    /// U + V + W (0: the ray runs in the triangle's plane).
+    pub det: Option<f64>,
+    /// t = (U·z_a + V·z_b + W·z_c)/det.
+    pub t: Option<f64>,
+    /// The hit's barycentric weights U/det, V/det, W/det of a, b, c.
+    pub barycentric: Option<[f64; 3]>,
 }
 
 /// The ray against the plane n·v = d.
@@ -286,12 +323,19 @@ pub fn intersection_steps(
     let shape = &scene.aggregate.primitives()[primitive as usize].shape;
     let mut log = StepLog::default();
     let (far, near) = (f64::INFINITY, 0.0);
+    let mut triangle = None;
     let (kind, found) = match shape {
         Shape::Plane(p) => ("plane", p.intersect_steps(ray, near, far, &mut log)),
         Shape::Polygon(p) => ("polygon", p.intersect_steps(ray, near, far, &mut log)),
         Shape::Sphere(s) => ("sphere", s.intersect_steps(ray, near, far, &mut log)),
         Shape::Ellipsoid(e) => ("ellipsoid", e.intersect_steps(ray, near, far, &mut log)),
-        Shape::Mesh(_) => ("mesh", shape.intersect(ray, near, far)),
+        Shape::Mesh(instance) => {
+            let found = shape.intersect(ray, near, far);
+            if found.is_some() {
+                triangle = triangle_steps(instance, ray, &mut log);
+            }
+            ("mesh", found)
+        }
         Shape::Cuboid(_) => ("box", shape.intersect(ray, near, far)),
         Shape::Cone(_) => ("cone", shape.intersect(ray, near, far)),
         Shape::Disc(_) => ("disc", shape.intersect(ray, near, far)),
@@ -400,7 +444,58 @@ pub fn intersection_steps(
         plane,
         polygon,
         sphere,
+        triangle,
     }
+}
+
+/// The watertight test of the triangle `instance` is hit on by `ray`, run
+/// again by `triangle_hit_steps` on that triangle with the ray in the
+/// mesh's space (as `MeshInstance::intersect` hands it to the mesh).
+fn triangle_steps(instance: &MeshInstance, ray: &Ray, log: &mut StepLog) -> Option<TriangleSteps> {
+    let (origin, direction) = match &instance.transform {
+        None => (ray.origin, ray.direction),
+        Some(t) => t.ray_to_object(ray),
+    };
+    let hit = instance
+        .mesh
+        .intersect(origin, direction, 0.0, f64::INFINITY)?;
+    // The triangle's corners: from the leaves whose boxes hold the hit.
+    let point = origin + hit.t * direction;
+    let slack = 1e-9 * point.abs().max_element().max(1.0);
+    let mut corners = None;
+    instance.mesh.visit_triangles(
+        |b| (point.cmpge(b.min - slack) & point.cmple(b.max + slack)).all(),
+        |index, c| {
+            if index == hit.triangle {
+                corners = Some(c);
+            }
+        },
+    );
+    let corners = corners?;
+    triangle_hit_steps(
+        &WatertightRay::new(origin, direction),
+        corners,
+        0.0,
+        f64::INFINITY,
+        log,
+    );
+    let (axes, uvw, det, t) = log.triangle?;
+    let (negative, positive) = (uvw.min_element() < 0.0, uvw.max_element() > 0.0);
+    Some(TriangleSteps {
+        triangle: hit.triangle,
+        vertices: corners.map(|c| c.to_array()),
+        object_space: instance.transform.is_some(),
+        axes: axes.map(axis_name),
+        edge_functions: uvw.to_array(),
+        signs: match (negative, positive) {
+            (true, true) => "mixed",
+            (true, false) => "all ≤ 0",
+            _ => "all ≥ 0",
+        },
+        det,
+        t,
+        barycentric: Some(hit.barycentric.to_array()),
+    })
 }
 
 /// Every other primitive's test against `ray` (whose nearest hit is `hit`),

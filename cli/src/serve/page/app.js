@@ -358,6 +358,12 @@ function testHtml(t, open) {
       (q.roots ? `roots t₀ = ${num(q.roots[0])}, t₁ = ${num(q.roots[1])}; ` +
         (q.taken ? `<b>${q.taken}</b> taken` : "both behind the ray") : "no real roots"));
   }
+  if (t.triangle) {
+    const w = t.triangle;
+    lines.push(`watertight test of triangle ${w.triangle}${w.object_space ? " (mesh space)" : ""}: ` +
+      `axes (kx, ky, kz) = (${w.axes.join(", ")}); edge functions U, V, W = (${fmt(w.edge_functions)}) ` +
+      `<b>${w.signs}</b>, det = ${num(w.det)}, t = ${num(w.t)}, barycentrics (${w.barycentric ? fmt(w.barycentric) : "–"})`);
+  }
   let diagram = "";
   if (t.polygon) diagram = polygonHtml(t.polygon, t.primitive);
   const body = lines.map((l) => `<div>${l}</div>`).join("") + diagram;
