@@ -217,6 +217,17 @@ vertices = [{}]
     // A convex outline around the point: one crossing, odd, inside.
     assert_eq!((poly.crossings, poly.parity, poly.inside), (1, "odd", true));
     assert_eq!(poly.translated_polygon.len(), 4);
+    // The scene docs/teaching.md starts with: the same question, clicked.
+    let e = at(&scene_file("principal-axis.toml"), 320, 170);
+    let s = e.tree.intersection.unwrap();
+    assert_eq!(s.object, "tilted pentagon");
+    let poly = s.polygon.unwrap();
+    assert_eq!((poly.principal_axis, poly.projected_onto), ("y", "zx"));
+    assert_eq!(poly.parity, "odd");
+}
+
+fn scene_file(name: &str) -> Scene {
+    scene(name)
 }
 
 /// The concave star: a click inside a point of the star is an odd count;

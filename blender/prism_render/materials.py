@@ -117,23 +117,25 @@ def generated_is_uv(obj):
     """Whether the mesh's Generated texture coordinates are its first UV
     map in x and y and constant in z (a flat mesh in its texture space);
     returns (True, z) or (False, None)."""
+    import numpy as np
     mesh = obj.data
     if mesh is None or not len(mesh.uv_layers) or not len(mesh.loops):
         return False, None
-    uv = mesh.uv_layers[0].data
-    loc, size = mesh.texspace_location, mesh.texspace_size
-    z = None
-    for loop in mesh.loops:
-        co = mesh.vertices[loop.vertex_index].co
-        g = [((co[i] - loc[i]) / size[i] + 1.0) * 0.5 if size[i] != 0 else 0.5 for i in range(3)]
-        u, v = uv[loop.index].uv
-        if abs(g[0] - u) > 1e-4 or abs(g[1] - v) > 1e-4:
-            return False, None
-        if z is None:
-            z = g[2]
-        elif abs(g[2] - z) > 1e-4:
-            return False, None
-    return True, z
+    n = len(mesh.loops)
+    vertex = np.empty(n, dtype=np.int64)
+    mesh.loops.foreach_get("vertex_index", vertex)
+    co = np.empty(3 * len(mesh.vertices), dtype=np.float64)
+    mesh.vertices.foreach_get("co", co)
+    uv = np.empty(2 * n, dtype=np.float64)
+    mesh.uv_layers[0].data.foreach_get("uv", uv)
+    co, uv = co.reshape(-1, 3)[vertex], uv.reshape(-1, 2)
+    loc, size = np.array(mesh.texspace_location), np.array(mesh.texspace_size)
+    # Blender's texture space spans loc ± size; a flat axis reads 0.5.
+    safe = np.where(size != 0.0, size, 1.0)
+    generated = np.where(size != 0.0, ((co - loc) / safe + 1.0) * 0.5, 0.5)
+    if np.abs(generated[:, :2] - uv).max() > 1e-4 or np.ptp(generated[:, 2]) > 1e-4:
+        return False, None
+    return True, float(generated[0, 2])
 
 
 def used_materials(depsgraph):

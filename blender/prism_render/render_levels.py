@@ -28,8 +28,11 @@ def render_levels(scene, view_layer):
     def set_(owner, attribute, value):
         old = getattr(owner, attribute)
         if old != value:
+            try:
+                setattr(owner, attribute, value)
+            except (AttributeError, RuntimeError, TypeError):
+                return  # linked from a library (read-only): left as the viewport has it
             saved.append((owner, attribute, old))
-            setattr(owner, attribute, value)
 
     try:
         if scene.render.use_simplify:
