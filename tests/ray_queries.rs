@@ -935,3 +935,66 @@ fn from_file_reads_what_a_scene_reads() {
     let unknown = RayScene::from_file(&dir.path().join("x.stl"), &Default::default());
     assert!(matches!(unknown, Err(QueryError::Load(_))));
 }
+
+/// A mesh too big for the cache goes through streams for incoherent rays
+/// (and packets for coherent ones): each answer is still the single ray's,
+/// and brute force's.
+#[test]
+fn big_meshes_take_streams_with_the_same_answers() {
+    let mut rng = Rng(9);
+    let n = 320u32;
+    let mut vertices = Vec::new();
+    for i in 0..n {
+        for j in 0..n {
+            let (x, z) = (
+                i as f64 / n as f64 * 2.0 - 1.0,
+                j as f64 / n as f64 * 2.0 - 1.0,
+            );
+            vertices.extend([x, 0.05 * rng.range(-1.0, 1.0), z]);
+        }
+    }
+    let mut faces = Vec::new();
+    for i in 0..n - 1 {
+        for j in 0..n - 1 {
+            let a = i * n + j;
+            faces.extend([a, a + n, a + 1, a + 1, a + n, a + n + 1]);
+        }
+    }
+    let soup = Soup { vertices, faces };
+    let mut scene = RayScene::new();
+    scene.add_mesh(&soup.vertices, &soup.faces, None).unwrap();
+    assert!(
+        scene.memory_bytes() > 8 << 20,
+        "{} bytes: no streams",
+        scene.memory_bytes()
+    );
+    let mesh = Mesh::new(soup.data()).unwrap();
+    let (o, d) = mixed_rays(&mut rng, 4096);
+    let batch = rays(&o, &d);
+    let hits = scene.intersect(&batch, &options(2)).unwrap();
+    let blocked = scene.occluded(&batch, &options(2)).unwrap();
+    let mut seen = 0;
+    for k in 0..batch.len() {
+        let (ro, rd) = batch.ray(k);
+        let single = mesh.intersect(ro, rd, 0.0, f64::INFINITY);
+        assert_eq!(
+            hits.t[k].to_bits(),
+            single.map_or(f64::INFINITY, |h| h.t).to_bits(),
+            "ray {k}"
+        );
+        assert_eq!(
+            hits.triangle_id[k],
+            single.map_or(-1, |h| i64::from(h.triangle))
+        );
+        assert_eq!(blocked[k], single.is_some());
+        seen += usize::from(single.is_some());
+        if k % 64 == 0 {
+            let brute = brute_hits(&[(soup.clone(), None)], ro, rd, 0.0, f64::INFINITY);
+            assert_eq!(
+                hits.triangle_id[k],
+                brute.first().map_or(-1, |b| i64::from(b.2))
+            );
+        }
+    }
+    assert!(seen > 1000, "{seen}");
+}
