@@ -490,6 +490,26 @@ try:
                       f"theta_i {r['theta_i']:.2f}° past the critical angle "
                       f"{r['critical_angle']:.2f}°: total internal reflection, R drawn, no T; "
                       f"{feelers} feelers drawn over the picture")
+                # The 3D view: every ray of the tree and every listed feeler
+                # drawn; a drag turns it.
+                space = driver.execute_script("return window.prism.space;")
+                listed = sum(len(l["feeler_points"]) for n in nodes for l in n["lights"])
+                if not space or space["rays"] != len(nodes) or space["feelers"] != listed:
+                    fail(f"the 3D view drew {space}, the tree has {len(nodes)} rays "
+                         f"and {listed} feelers listed")
+                view3d = driver.find_element(By.ID, "space")
+                driver.execute_script("arguments[0].scrollIntoView({block: 'nearest'});", view3d)
+                ActionChains(driver).move_to_element(view3d).click_and_hold().move_by_offset(
+                    -60, 20).release().perform()
+                turned = driver.execute_script("return window.prism.space;")
+                if turned["yaw"] == space["yaw"] or turned["rays"] != len(nodes):
+                    fail(f"dragging the 3D view did not turn it: {space} -> {turned}")
+                driver.save_screenshot(os.path.join(SCREENS, "lecture-space.png"))
+                if README_SHOT:
+                    driver.save_screenshot(os.path.join(os.path.dirname(README_SHOT),
+                                                        "lecture-space.png"))
+                print(f"ok: the 3D view draws the {len(nodes)} rays and {listed} feelers "
+                      f"of the tree among {space['objects']} objects, and turns when dragged")
                 shot = "lecture-glass.png"
                 driver.execute_script("""[...document.querySelectorAll('.snell-diagram')]
                     .find((d) => d.dataset.tir === 'true').scrollIntoView({block: "nearest"});""")

@@ -15,6 +15,7 @@
 
 mod conn;
 mod interfaces;
+mod space;
 mod views;
 mod worker;
 
@@ -674,7 +675,7 @@ struct PixelQuery {
 /// `prism explain --json` for a pixel of the last good scene, with each
 /// ray's segment projected onto the picture (`screen`: x0, y0, x1, y1),
 /// its shadow feelers' too (`kind` "feeler", `blocked`: ending at the
-/// blocker).
+/// blocker), and the scene in outline for the 3D view (`space`).
 async fn explain(State(app): State<App>, Query(q): Query<PixelQuery>) -> Response {
     let Some((scene, settings, _)) = app.shared.last_scene() else {
         return refuse(StatusCode::CONFLICT, "no scene has loaded yet\n");
@@ -735,6 +736,7 @@ async fn explain(State(app): State<App>, Query(q): Query<PixelQuery>) -> Respons
             }
         }
         json["segments"] = serde_json::Value::Array(segments);
+        json["space"] = space::outline(&scene);
         Ok::<_, String>(json.to_string())
     })
     .await;

@@ -482,7 +482,11 @@ async function explain(x, y) {
     `<p>Pixel (${x}, ${y}), sample ${e.sample} of ${e.samples}: radiance <b id="inspect-radiance">${fmt(e.radiance)}</b></p>` +
     (e.lens_point ? `<p>Through the lens at ${fmt(e.lens_point)} (right, up from its centre)</p>` : "") +
     (e.time != null ? `<p>At the shutter's instant ${e.time.toFixed(4)} frames after the frame's start</p>` : "") +
+    `<div class="space"><canvas id="space" width="440" height="280"></canvas>` +
+    `<div>In space: drag to turn the view. Camera white, lights yellow, rays as over the picture.</div></div>` +
     nodeHtml(e.tree);
+  drawSpace();
+  spaceEvents();
   // The sample's rays over the picture, its shadow feelers too: a blocked
   // one red, ending in a cross where it was blocked.
   rctx.clearRect(0, 0, rays.width, rays.height);
@@ -505,6 +509,125 @@ async function explain(x, y) {
     }
   }
   rctx.setLineDash([]);
+}
+
+// The 3D view: the scene in outline (the server's `space`), the camera,
+// the lights and the sample's ray tree with its feelers, seen from an
+// orbiting eye (drag to turn it), drawn on a plain 2D canvas.
+const orbit = { yaw: null, pitch: 0.35 };
+const v3 = {
+  add: (a, b) => [a[0] + b[0], a[1] + b[1], a[2] + b[2]],
+  sub: (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]],
+  mul: (a, k) => [a[0] * k, a[1] * k, a[2] * k],
+  dot: (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2],
+  cross: (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]],
+  unit: (a) => { const l = Math.hypot(...a) || 1; return [a[0] / l, a[1] / l, a[2] / l]; },
+};
+function treeNodes(n) {
+  return [n].concat(...[n.reflected, n.refracted].filter(Boolean).map(treeNodes));
+}
+function drawSpace() {
+  const e = state.explanation, cv = $("space");
+  if (!e || !cv || !e.space) return;
+  const g = cv.getContext("2d"), W = cv.width, H = cv.height;
+  g.fillStyle = "#15161a"; g.fillRect(0, 0, W, H);
+  const sp = e.space, nodes = treeNodes(e.tree);
+  // The view holds the camera and the tree's points.
+  const pts = [sp.camera.position];
+  for (const n of nodes) { pts.push(n.origin); if (n.hit) pts.push(n.hit.point); }
+  const centre = v3.mul(pts.reduce(v3.add, [0, 0, 0]), 1 / pts.length);
+  const R = Math.max(1e-3, ...pts.map((p) => Math.hypot(...v3.sub(p, centre))));
+  if (orbit.yaw === null) {
+    // First seen from the scene's camera, turned 35° to show depth.
+    const f = sp.camera.forward;
+    orbit.yaw = Math.atan2(-f[0], -f[2]) + 0.6;
+    orbit.pitch = Math.max(-1.4, Math.min(1.4, Math.asin(Math.max(-1, Math.min(1, -f[1]))) + 0.25));
+  }
+  const D = 2.6 * R;
+  const eye = v3.add(centre, v3.mul([Math.cos(orbit.pitch) * Math.sin(orbit.yaw),
+    Math.sin(orbit.pitch), Math.cos(orbit.pitch) * Math.cos(orbit.yaw)], D));
+  const fw = v3.unit(v3.sub(centre, eye)), rt = v3.unit(v3.cross(fw, [0, 1, 0])), up = v3.cross(rt, fw);
+  const focal = H / (2 * Math.tan(25 * Math.PI / 180));
+  const project = (p) => {
+    const d = v3.sub(p, eye), z = v3.dot(d, fw);
+    return z > 1e-3 * D ? [W / 2 + focal * v3.dot(d, rt) / z, H / 2 - focal * v3.dot(d, up) / z] : null;
+  };
+  const line = (a, b, colour, width = 1, dash = []) => {
+    const pa = project(a), pb = project(b);
+    if (!pa || !pb) return false;
+    g.strokeStyle = colour; g.lineWidth = width; g.setLineDash(dash);
+    g.beginPath(); g.moveTo(...pa); g.lineTo(...pb); g.stroke();
+    return true;
+  };
+  const loop = (ps, colour) => ps.forEach((p, i) => line(p, ps[(i + 1) % ps.length], colour));
+  // Objects in outline.
+  for (const o of sp.objects) {
+    const colour = "#666";
+    if (o.sphere) {
+      const { center: c, radius: r } = o.sphere;
+      for (const [a, b] of [[[1, 0, 0], [0, 1, 0]], [[0, 1, 0], [0, 0, 1]], [[1, 0, 0], [0, 0, 1]]]) {
+        loop([...Array(32).keys()].map((k) => {
+          const t = 2 * Math.PI * k / 32;
+          return v3.add(c, v3.add(v3.mul(a, r * Math.cos(t)), v3.mul(b, r * Math.sin(t))));
+        }), colour);
+      }
+    } else if (o.polygon) {
+      loop(o.polygon, "#888");
+    } else if (o.plane) {
+      const n = o.plane.normal, foot = v3.sub(centre, v3.mul(n, v3.dot(n, centre) - o.plane.d));
+      const a = v3.unit(v3.cross(n, Math.abs(n[0]) < 0.9 ? [1, 0, 0] : [0, 1, 0])), b = v3.cross(n, a);
+      const S = 1.5 * R;
+      for (let k = -4; k <= 4; k++) {
+        const s = S * k / 4;
+        line(v3.add(foot, v3.add(v3.mul(a, s), v3.mul(b, -S))), v3.add(foot, v3.add(v3.mul(a, s), v3.mul(b, S))), "#3a3a3a");
+        line(v3.add(foot, v3.add(v3.mul(b, s), v3.mul(a, -S))), v3.add(foot, v3.add(v3.mul(b, s), v3.mul(a, S))), "#3a3a3a");
+      }
+    } else if (o.box) {
+      const [lo, hi] = o.box;
+      const c = (i) => [i & 1 ? hi[0] : lo[0], i & 2 ? hi[1] : lo[1], i & 4 ? hi[2] : lo[2]];
+      for (let i = 0; i < 8; i++) for (const bit of [1, 2, 4]) if (!(i & bit)) line(c(i), c(i | bit), colour);
+    }
+  }
+  // The camera and the lights.
+  const cam = sp.camera.position;
+  line(cam, v3.add(cam, v3.mul(sp.camera.forward, 0.15 * R)), "#fff", 2);
+  const dot = (p, colour, r) => {
+    const q = project(p);
+    if (q) { g.fillStyle = colour; g.beginPath(); g.arc(q[0], q[1], r, 0, 2 * Math.PI); g.fill(); }
+  };
+  dot(cam, "#fff", 3);
+  for (const l of sp.lights) if (l.position) dot(l.position, "#ffeb3b", 4);
+  // The tree: rays to their hits (a miss: as far as the view reaches) and
+  // the listed feelers, blocked ones red to their blocker.
+  const colours = { camera: "#ffd54f", reflected: "#4fc3f7", refracted: "#81c784" };
+  let rays = 0, feelers = 0;
+  for (const n of nodes) {
+    const end = n.hit ? n.hit.point : v3.add(n.origin, v3.mul(n.direction, 2 * R));
+    if (line(n.origin, end, colours[n.kind], 2)) rays++;
+    if (n.hit) dot(n.hit.point, colours[n.kind], 2.5);
+    for (const l of n.lights) {
+      for (const f of l.feeler_points) {
+        const to = f.blocker_distance != null ? v3.add(f.origin, v3.mul(f.direction, f.blocker_distance))
+          : f.on_light || v3.add(f.origin, v3.mul(f.direction, 2 * R));
+        if (line(f.origin, to, f.blocked_by ? "#ef5350" : "#fff59d", 1, [3, 2])) feelers++;
+      }
+    }
+  }
+  g.setLineDash([]);
+  state.space = { rays, feelers, objects: sp.objects.length, yaw: orbit.yaw, pitch: orbit.pitch };
+}
+function spaceEvents() {
+  const cv = $("space");
+  let from = null;
+  cv.onmousedown = (ev) => { from = [ev.clientX, ev.clientY]; ev.preventDefault(); };
+  cv.onmousemove = (ev) => {
+    if (!from) return;
+    orbit.yaw -= (ev.clientX - from[0]) * 0.01;
+    orbit.pitch = Math.max(-1.5, Math.min(1.5, orbit.pitch + (ev.clientY - from[1]) * 0.01));
+    from = [ev.clientX, ev.clientY];
+    drawSpace();
+  };
+  cv.onmouseup = cv.onmouseleave = () => { from = null; };
 }
 
 // The token is kept in a cookie now: out of the address bar.
