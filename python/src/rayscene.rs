@@ -288,7 +288,7 @@ fn threads_arg(threads: Option<i64>) -> PyResult<Option<usize>> {
 
 /// An (N, 3) coordinate array: float64 read in place, float32 converted.
 enum Coords<'py> {
-    Borrowed(PyReadonlyArray2<'py, f64>),
+    Borrowed(&'static str, PyReadonlyArray2<'py, f64>),
     Converted(Vec<f64>),
 }
 
@@ -301,10 +301,17 @@ impl<'py> Coords<'py> {
             if a.shape()[1] != 3 {
                 return Err(shape_error(a.shape()));
             }
+            // Read in place only row by row (a Fortran-ordered array is
+            // contiguous too, column by column).
+            if !a.is_c_contiguous() {
+                return Err(PyValueError::new_err(format!(
+                    "{name}: must be C-contiguous (np.ascontiguousarray)"
+                )));
+            }
             let a = a
                 .try_readonly()
                 .map_err(|e| PyValueError::new_err(format!("{name}: {e}")))?;
-            return Ok(Coords::Borrowed(a));
+            return Ok(Coords::Borrowed(name, a));
         }
         if let Ok(a) = obj.cast::<PyArray2<f32>>() {
             if a.shape()[1] != 3 {
@@ -324,8 +331,10 @@ impl<'py> Coords<'py> {
 
     fn slice(&self) -> PyResult<&[f64]> {
         match self {
-            Coords::Borrowed(a) => a.as_slice().map_err(|_| {
-                PyValueError::new_err("coordinates must be C-contiguous (np.ascontiguousarray)")
+            Coords::Borrowed(name, a) => a.as_slice().map_err(|_| {
+                PyValueError::new_err(format!(
+                    "{name}: must be C-contiguous (np.ascontiguousarray)"
+                ))
             }),
             Coords::Converted(v) => Ok(v),
         }

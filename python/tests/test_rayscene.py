@@ -239,6 +239,11 @@ BAD = [
     ("points NaN", lambda s, v, f, o, d: s.contains(o * np.nan), "points"),
     ("points empty", lambda s, v, f, o, d: s.contains(o[:0]), "points"),
     ("contains open mesh", lambda s, v, f, o, d: prism.RayScene(v, f[1:]).contains(o), "contains"),
+    # The extension itself, past the package's conversions.
+    ("raw strided origins", lambda s, v, f, o, d: s._scene.intersect(np.asfortranarray(o), d, 0.0,
+                                                                      np.inf, None), "origins"),
+    ("raw int faces", lambda s, v, f, o, d: s._scene.add_mesh(v, f.astype(np.int32), None), "faces"),
+    ("raw list points", lambda s, v, f, o, d: s._scene.contains(o.tolist(), None), "points"),
 ]
 
 
