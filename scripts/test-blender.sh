@@ -59,14 +59,14 @@ bpy.ops.wm.save_userpref()" -- "$ZIP" "$PRISM" >>"$WORK/blender.log" 2>&1
 blend --factory-startup --python scripts/blender/make_scenes.py -- "$WORK"
 # Prints the lines of $WORK/blender.log from line $1 on that start with $2.
 since() { tail -n "+$1" "$WORK/blender.log" | grep "^$2" || true; }
-for name in probe_point probe_spot probe_sun probe_area probe_area_disk probe_area45 probe_spot_profile probe_furnace \
+for name in probe_point probe_spot probe_sun probe_area probe_area_disk probe_area45 probe_spot_profile probe_furnace motion_camera \
         default default_ortho default_portrait default_shift default_ortho_shift showcase \
         newcomer_checker newcomer_dof newcomer_spot newcomer_area newcomer_area_side; do
     dir=$WORK/$name
     mkdir -p "$dir"
     spp=1
     case $name in default*|showcase|newcomer_*) spp=4 ;; esac
-    [ "$name" = newcomer_dof ] && spp=16  # a lens wants samples
+    case $name in newcomer_dof|motion_camera) spp=16 ;; esac  # a lens or a shutter wants samples
     # Through the add-on, as `blender -b FILE -E PRISM -f 1` does.
     blend "$WORK/$name.blend" --python scripts/blender/use_addon.py \
         -E PRISM -o "$dir/blender_#" -f 1 -- "$ZIP" "$PRISM" "$dir/export" "$spp"
@@ -113,10 +113,16 @@ blend "$WORK/newcomer_dof.blend" --python scripts/blender/dof_probe.py -- \
     "$WORK/newcomer_checker/cycles.exr" "$WORK/newcomer_checker/prism.exr" \
     "$WORK/newcomer_dof/cycles.exr" "$WORK/newcomer_dof/prism.exr"
 since "$mark" "dof_probe:"
+# Camera motion blur: the camera's smear as Cycles smears it.
+mark=$(( $(wc -l <"$WORK/blender.log") + 1 ))
+blend --factory-startup --python scripts/blender/motion_probe.py -- \
+    "$WORK/motion_camera/cycles.exr" "$WORK/motion_camera/prism.exr"
+since "$mark" "motion_probe:"
 # What Prism cannot show is said, once each: the nodes the export drops
-# (a Noise Texture on the cube), motion blur, a sun's angle.
+# (a Noise Texture on the cube), an object's motion blur, a sun's angle.
 for warning in "material 'vertex colours': the glTF export drops Noise Texture" \
-        "motion blur is not carried" "light 'sun': a sun's angle is not carried"; do
+        "Prism cannot key the motion of objects inside it; rendered sharp: 'emitter'" \
+        "light 'sun': a sun's angle is not carried"; do
     if ! grep -qF "$warning" "$WORK/blender.log"; then
         echo "FAIL: no warning \"$warning\" in $WORK/blender.log" >&2
         exit 1

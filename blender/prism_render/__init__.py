@@ -13,6 +13,7 @@ bl_info = {
     "category": "Render",
 }
 
+import math
 import os
 import shutil
 import tempfile
@@ -123,8 +124,8 @@ class PrismRenderEngine(bpy.types.RenderEngine):
         exr = os.path.join(folder, "render.exr")
         self.update_stats("", "Prism: exporting glTF")
         try:
-            export_on_main_thread(self, scene, glb, depsgraph.view_layer,
-                                  lights=scene.prism.lights == "GLTF")
+            motion = export_on_main_thread(self, scene, glb, depsgraph.view_layer,
+                                           lights=scene.prism.lights == "GLTF")
         except Cancelled:
             return
         except Exception as e:  # the exporter's own failure, whatever it is
@@ -135,7 +136,7 @@ class PrismRenderEngine(bpy.types.RenderEngine):
                 scene_file.drop_gltf_spots(glb)
             # Checker textures the exporter drops, and what else it drops.
             material_notes = materials.carry(glb, depsgraph)
-            text, notes = scene_file.scene_toml(depsgraph, "scene.glb", scene.prism)
+            text, notes = scene_file.scene_toml(depsgraph, "scene.glb", scene.prism, motion)
             notes += material_notes
         except (OSError, ValueError) as e:
             return self._fail(str(e))
@@ -200,10 +201,10 @@ def export_on_main_thread(engine, scene, path, view_layer, lights=True):
     """The exporter is an operator and needs Blender's main thread; F12 in
     the interface renders on a job thread. There the export is handed to
     a timer (timers run on the main thread, whose event loop goes on during
-    a render) and this thread waits for it, or for Esc."""
+    a render) and this thread waits for it, or for Esc. Returns the
+    shutter's poses (see shutter_poses), found there too."""
     if threading.current_thread() is threading.main_thread():
-        export_gltf(scene, path, view_layer, lights)
-        return
+        return export_gltf(scene, path, view_layer, lights)
     done = threading.Event()
     outcome = {}
     frame = scene.frame_current
@@ -212,7 +213,7 @@ def export_on_main_thread(engine, scene, path, view_layer, lights=True):
         try:
             if scene.frame_current != frame:
                 scene.frame_set(frame)
-            export_gltf(scene, path, view_layer, lights)
+            outcome["motion"] = export_gltf(scene, path, view_layer, lights)
         except Exception as e:  # handed to the render thread
             outcome["error"] = e
         done.set()
@@ -225,11 +226,48 @@ def export_on_main_thread(engine, scene, path, view_layer, lights=True):
             raise Cancelled()
     if "error" in outcome:
         raise outcome["error"]
+    return outcome.get("motion")
+
+
+def shutter_poses(scene):
+    """With motion blur on, the scene at the shutter's opening and closing
+    (Blender's motion_blur_position: the frame starts, centres or ends the
+    exposure of motion_blur_shutter frames): the active camera's world
+    matrix at each, and the names of the other objects whose world matrix
+    differs between them. None without motion blur. The scene is put back
+    at its frame. Main thread only (frame_set evaluates the scene)."""
+    render = scene.render
+    if not render.use_motion_blur or scene.camera is None:
+        return None
+    length = max(0.0, render.motion_blur_shutter)
+    # Blender 3.x keeps the position in Cycles' settings, later versions in render's.
+    position = getattr(render, "motion_blur_position", None) \
+        or getattr(getattr(scene, "cycles", None), "motion_blur_position", "CENTER")
+    start = {"START": 0.0, "END": -length}.get(position, -0.5 * length)
+    frame, subframe = scene.frame_current, scene.frame_subframe
+    poses = []
+    try:
+        for t in (start, start + length):
+            whole = math.floor(frame + t)
+            scene.frame_set(int(whole), subframe=frame + t - whole)
+            poses.append((scene.camera.matrix_world.copy(),
+                          {o.name: o.matrix_world.copy() for o in scene.objects if o != scene.camera}))
+    finally:
+        scene.frame_set(frame, subframe=subframe)
+    (camera0, others0), (camera1, others1) = poses
+    moving = sorted(name for name, m in others0.items()
+                    if name in others1 and not _same_matrix(m, others1[name]))
+    return {"times": (start, start + length), "camera": (camera0, camera1), "moving": moving}
+
+
+def _same_matrix(a, b):
+    return all(abs(a[i][j] - b[i][j]) <= 1e-9 * (1.0 + abs(a[i][j])) for i in range(4) for j in range(4))
 
 
 def export_gltf(scene, path, view_layer=None, lights=True):
     """Blender's bundled glTF exporter with the options a render needs;
-    options this Blender's exporter lacks are left out."""
+    options this Blender's exporter lacks are left out. Returns the
+    shutter's poses (shutter_poses), taken as the render sees the scene."""
     wanted = {
         "filepath": path,
         "check_existing": False,
@@ -267,13 +305,17 @@ def export_gltf(scene, path, view_layer=None, lights=True):
         raise RuntimeError("Blender has no window for the glTF exporter to use")
     # The exporter reads the viewport's depsgraph; a render wants the
     # render's modifier levels and visibility (render_levels.py).
-    with render_levels(scene, view_layer), bpy.context.temp_override(
-        window=window, scene=scene, view_layer=view_layer, active_object=active, object=active,
-        selected_objects=[o for o in view_layer.objects if o.select_get(view_layer=view_layer)],
-    ):
-        result = bpy.ops.export_scene.gltf(**options)
+    with render_levels(scene, view_layer):
+        # Objects hidden only in viewports move too: poses with them shown.
+        motion = shutter_poses(scene)
+        with bpy.context.temp_override(
+            window=window, scene=scene, view_layer=view_layer, active_object=active, object=active,
+            selected_objects=[o for o in view_layer.objects if o.select_get(view_layer=view_layer)],
+        ):
+            result = bpy.ops.export_scene.gltf(**options)
     if "FINISHED" not in result:
         raise RuntimeError(f"the exporter returned {result}")
+    return motion
 
 
 class RENDER_PT_prism(bpy.types.Panel):

@@ -103,17 +103,22 @@ def world_colour(world):
     return tuple(max(0.0, c) for c in world.color[:3]), None
 
 
-def camera_table(cam_obj, width, height, pixel_aspect):
-    """`[camera]` for Blender's active camera: position, look_at, up and the
-    field of view along the axis Blender fits the sensor to. Returns the
-    lines and a list of notes for what Prism cannot show."""
-    notes = []
-    cam = cam_obj.data
-    m = cam_obj.matrix_world
+def _view(m):
+    """(position, look_at, up) of a camera's world matrix, +Y up."""
     position = m.translation
     forward = (m.to_3x3() @ _vec(0.0, 0.0, -1.0)).normalized()
     up = (m.to_3x3() @ _vec(0.0, 1.0, 0.0)).normalized()
-    look_at = position + forward
+    return to_y_up(position), to_y_up(position + forward), to_y_up(up)
+
+
+def camera_table(cam_obj, width, height, pixel_aspect, motion=None):
+    """`[camera]` for Blender's active camera: position, look_at, up and the
+    field of view along the axis Blender fits the sensor to; with
+    `motion` (the shutter's camera poses, times in frames from this
+    frame) each keyed at the shutter's opening (Prism's frame 0) and
+    closing. Returns the lines and a list of notes for what Prism cannot show."""
+    notes = []
+    cam = cam_obj.data
     # The sensor fits the wider side of the (pixel-aspect-corrected) frame
     # under AUTO; HORIZONTAL and VERTICAL say which side.
     wide = width * pixel_aspect[0] >= height * pixel_aspect[1]
@@ -138,9 +143,18 @@ def camera_table(cam_obj, width, height, pixel_aspect):
     else:
         raise ValueError(
             f"camera '{cam_obj.name}' is panoramic; Prism has perspective and orthographic cameras only")
-    lines.append(f"position = {toml_vector(to_y_up(position))}")
-    lines.append(f"look_at = {toml_vector(to_y_up(look_at))}")
-    lines.append(f"up = {toml_vector(to_y_up(up))}")
+    if motion is None:
+        views = [(0.0, _view(cam_obj.matrix_world))]
+    else:
+        t0, t1 = motion["times"]
+        views = [(0.0, _view(motion["camera"][0])), (t1 - t0, _view(motion["camera"][1]))]
+    for i, key in enumerate(("position", "look_at", "up")):
+        if len(views) == 1:
+            lines.append(f"{key} = {toml_vector(views[0][1][i])}")
+        else:
+            keys = ", ".join(f"{{ frame = {toml_number(t)}, value = {toml_vector(v[i])} }}"
+                             for t, v in views)
+            lines.append(f"{key} = [{keys}]")
     lines += lens_lines(cam_obj, notes)
     if HAS_SHIFT and (cam.shift_x != 0.0 or cam.shift_y != 0.0):
         # Blender shifts by its fitted side (the fov axis above); Prism's
@@ -184,6 +198,10 @@ def lens_lines(cam_obj, notes):
         notes.append(f"camera '{cam_obj.name}': an aperture ratio other than 1 is not carried")
     return [f"aperture = {toml_number(radius)}",
             f"focus_distance = {toml_number(distance)}"]
+
+
+def _same(a, b):
+    return all(abs(x - y) <= 1e-9 * (1.0 + abs(x)) for x, y in zip(a, b))
 
 
 def _vec(*c):
@@ -331,9 +349,10 @@ def area_light_table(label, name, light, m):
     return lines, notes
 
 
-def scene_toml(depsgraph, glb_name, settings):
-    """The whole scene file; `settings` is the scene's PrismSettings.
-    Returns (text, notes)."""
+def scene_toml(depsgraph, glb_name, settings, motion=None):
+    """The whole scene file; `settings` is the scene's PrismSettings;
+    `motion` the shutter's poses with motion blur on (the add-on's
+    shutter_poses), else None. Returns (text, notes)."""
     scene = depsgraph.scene
     render = scene.render
     width, height = image_size(render)
@@ -361,13 +380,27 @@ def scene_toml(depsgraph, glb_name, settings):
         lines.append(f"exposure = {toml_number(scene.view_settings.exposure)}")
     elif scene.view_settings.exposure != 0.0:
         notes.append("Prism's scene file has no exposure yet; Blender applies its exposure to the render it shows")
-    if render.use_motion_blur:
+    camera_motion = None
+    if render.use_motion_blur and motion is not None:
+        # The camera's motion is Prism's shutter over keyed camera values
+        # (frame 0 the opening); objects inside the .glb cannot be keyed.
+        t0, t1 = motion["times"]
+        if t1 > t0 and not all(_same(a, b) for a, b in zip(*(_view(m) for m in motion["camera"]))):
+            camera_motion = motion
+            lines.append(f"shutter = [0, {toml_number(t1 - t0)}]")
+        if motion["moving"]:
+            names = ", ".join(f"'{n}'" for n in motion["moving"][:8])
+            more = f" and {len(motion['moving']) - 8} more" if len(motion["moving"]) > 8 else ""
+            notes.append("motion blur: the scene file holds the glTF export of one instant "
+                         f"(frame {scene.frame_current}) and Prism cannot key the motion of objects "
+                         f"inside it; rendered sharp: {names}{more}"
+                         + (" (the camera's motion is carried)" if camera_motion else ""))
+    elif render.use_motion_blur:
         notes.append("motion blur is not carried: the scene file holds the glTF export of one "
-                     f"instant (frame {scene.frame_current}), and Prism cannot key the motion of "
-                     "objects inside it; rendered sharp")
+                     f"instant (frame {scene.frame_current}); rendered sharp")
     lines.append("")
     cam_lines, cam_notes = camera_table(
-        scene.camera, width, height, (render.pixel_aspect_x, render.pixel_aspect_y))
+        scene.camera, width, height, (render.pixel_aspect_x, render.pixel_aspect_y), camera_motion)
     lines += cam_lines + [""]
     notes += cam_notes
     # glTF has no area light and another spot cone: with "Lights: glTF

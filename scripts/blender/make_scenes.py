@@ -14,6 +14,8 @@
     perspective and orthographic (the framing test of the off-centre frustum);
   probe_furnace: a rough metal ball (roughness 0.5) alone under a grey
     world, no lights: glossy reflection against Cycles' at its centre;
+  motion_camera: a checker plane seen from above by a camera moving
+    along x, motion blur on (motion_probe.py);
   probe_spot_profile: the plane under a spot (size 45, blend 0.5) at 128x96,
     its whole pool in view (spot_profile.py);
   newcomer_checker, newcomer_dof, newcomer_spot, newcomer_area(_side): a
@@ -21,7 +23,7 @@
     Texture floor under a point light (and the same through a lens focused
     on the mirror ball); a spot, an emissive ball and a vertex-coloured cube
     under Subdivision at viewport 0 / render 2 (with a Noise Texture the
-    export drops, and motion blur on); two cameras, an area light and a sun
+    export drops, and motion blur on while the emitter rises); two cameras, an area light and a sun
     with an angle. Each has prism_probes, floor points lit directly;
   showcase: an 8x8 floor (a packed 16x16 checker image tiled 4 times by a
     Mapping node, so the exporter writes KHR_texture_transform), a mirror
@@ -187,6 +189,42 @@ background.inputs["Color"].default_value = (0, 0, 0, 1)
 background.inputs["Strength"].default_value = 0.0
 bpy.data.objects.remove(furnace_ball, do_unlink=True)
 plane.hide_render = False
+
+# Camera motion blur (issue 29): the plane with a Checker Texture (1-unit
+# cells) under a 1 W/m2 sun, seen from straight above at 128x96 by a camera
+# moving along x at 1 unit a frame (keyed linearly, frames 0 to 2), motion
+# blur on with Blender's default shutter (0.5 frames centred on frame 1):
+# the cells' vertical edges smear over 0.5 units, about 15 pixels.
+motion_floor = bpy.data.materials.new("moving checker")
+motion_floor.use_nodes = True
+motion_checker = motion_floor.node_tree.nodes.new("ShaderNodeTexChecker")
+motion_checker.inputs["Scale"].default_value = 4.0
+motion_bsdf = motion_floor.node_tree.nodes["Principled BSDF"]
+motion_bsdf.inputs["Roughness"].default_value = 1.0
+motion_bsdf.inputs["Specular"].default_value = 0.0
+motion_floor.node_tree.links.new(motion_checker.outputs["Color"], motion_bsdf.inputs["Base Color"])
+plane.data.materials[0] = motion_floor
+sun_data = bpy.data.lights.new("sun", "SUN")
+sun_data.energy, sun_data.angle = 1.0, 0.0
+sun = bpy.data.objects.new("sun", sun_data)
+scene.collection.objects.link(sun)
+camera.location = (-1.0, 0.0, 6.0)
+camera.keyframe_insert("location", frame=0)
+camera.location = (1.0, 0.0, 6.0)
+camera.keyframe_insert("location", frame=2)
+for curve in camera.animation_data.action.fcurves:
+    for key in curve.keyframe_points:
+        key.interpolation = "LINEAR"
+scene.frame_set(1)
+scene.render.use_motion_blur = True
+scene.render.resolution_x, scene.render.resolution_y = 128, 96
+bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "motion_camera.blend"), copy=True)
+scene.render.resolution_x, scene.render.resolution_y = 64, 48
+scene.render.use_motion_blur = False
+camera.animation_data_clear()
+camera.location = (0.0, 0.0, 6.0)
+bpy.data.objects.remove(sun, do_unlink=True)
+plane.data.materials[0] = material
 
 # The showcase (issue 15): texture transform, mirror, glass, emission, spot.
 for obj in list(bpy.data.objects):
@@ -362,6 +400,12 @@ bpy.ops.mesh.primitive_uv_sphere_add(radius=0.4, location=(1.5, 1.5, 0.4))
 bpy.context.active_object.name = "emitter"
 # Disabled in viewports, not in renders: F12 renders it, so must the export.
 bpy.context.active_object.hide_viewport = True
+# Rising over frames 0 to 2: with motion blur on, Prism names it as sharp.
+emitter = bpy.context.active_object
+emitter.keyframe_insert("location", frame=0)
+emitter.location.z = 0.8
+emitter.keyframe_insert("location", frame=2)
+scene.frame_set(1)
 m = bpy.data.materials.new("glow")
 m.use_nodes = True
 m.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
@@ -378,7 +422,7 @@ light.location = (0.5, -1.5, 4.0)
 scene.collection.objects.link(light)
 scene.camera = add_camera("camera", (0.0, -7.0, 4.0), (math.radians(62.0), 0.0, 0.0))
 scene["prism_probes"] = [(0.5, -1.5, 0.0), (1.3, -1.5, 0.0)]
-scene.render.use_motion_blur = True  # nothing moves: Cycles is unchanged, Prism warns
+scene.render.use_motion_blur = True  # the emitter moves: Prism names it as sharp
 bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "newcomer_spot.blend"), copy=True)
 scene.render.use_motion_blur = False
 
