@@ -2,7 +2,8 @@
 # The Python package as a newcomer gets it: a clean virtual environment
 # under target/, `pip install ./python` (maturin builds the abi3 wheel from
 # source), then the pytest suite against the command's own outputs, and the
-# example notebook executed headless (nbclient) so that it cannot rot.
+# example notebooks (whitted.ipynb, lecture.ipynb) executed headless
+# (nbclient) so that they cannot rot.
 # Also clippy on the extension crate (not a default member of the workspace).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -32,4 +33,19 @@ pngs = sum(1 for c in nb.cells if c.cell_type == "code"
            for o in c.get("outputs", []) if "image/png" in o.get("data", {}))
 assert pngs >= 3, f"the notebook showed {pngs} pictures"
 print(f"ok: {path} executed, {pngs} pictures")
+PY
+# The lecture's questions on the example scenes (issue 31): each answer is
+# asserted in the notebook, each explanation drawn as HTML.
+"$VENV/bin/python" - "$ROOT/examples/lecture.ipynb" <<'PY'
+import sys
+import nbformat
+from nbclient import NotebookClient
+path = sys.argv[1]
+nb = nbformat.read(path, as_version=4)
+NotebookClient(nb, timeout=300, kernel_name="python3",
+               resources={"metadata": {"path": str(__import__("pathlib").Path(path).parent)}}).execute()
+drawn = sum(1 for c in nb.cells if c.cell_type == "code"
+            for o in c.get("outputs", []) if "prism-explanation" in o.get("data", {}).get("text/html", ""))
+assert drawn >= 3, f"the notebook drew {drawn} explanations"
+print(f"ok: {path} executed, {drawn} explanations drawn")
 PY

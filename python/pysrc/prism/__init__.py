@@ -26,6 +26,7 @@ import numpy as np
 
 from . import _prism
 from ._prism import SceneError
+from .lecture import Explanation
 from .rays import RayScene
 
 __all__ = [
@@ -43,6 +44,7 @@ __all__ = [
     "LIMITS",
     "escape_controls",
     "RayScene",
+    "Explanation",
 ]
 
 #: The debug views ``Scene.render(aov=...)`` takes.
@@ -209,22 +211,25 @@ class Scene:
         max_depth: Optional[int] = None,
         seed: Optional[int] = None,
         frame: int = 0,
-    ) -> dict:
+    ) -> Explanation:
         """The ray tree of one sample of pixel (x, y): the same tree as
-        ``prism explain --json``, as dicts and lists. Settings left out are
+        ``prism explain --json``, as dicts and lists (an :class:`Explanation`,
+        which Jupyter draws: the lecture's steps). Settings left out are
         the scene's own; its ``radiance`` is the rendered pixel when the
         render has one sample per pixel (``spp=1``)."""
-        return json.loads(
-            self._inner.explain_json(
-                x,
-                y,
-                sample=sample,
-                width=width,
-                height=height,
-                spp=spp,
-                max_depth=max_depth,
-                seed=seed,
-                frame=frame,
+        return Explanation(
+            json.loads(
+                self._inner.explain_json(
+                    x,
+                    y,
+                    sample=sample,
+                    width=width,
+                    height=height,
+                    spp=spp,
+                    max_depth=max_depth,
+                    seed=seed,
+                    frame=frame,
+                )
             )
         )
 
@@ -288,7 +293,7 @@ def loads(
     return Scene(_prism.loads(text, _folder_arg(base_dir), origin, _folders(allow_read), frame))
 
 
-def explain(scene: Scene, x: int, y: int, sample: int = 0, **settings: Any) -> dict:
+def explain(scene: Scene, x: int, y: int, sample: int = 0, **settings: Any) -> Explanation:
     """The ray tree of one sample of pixel (x, y), as ``prism explain
     --json`` gives it: ``radiance`` (the sample's RGB; with ``spp=1`` the
     rendered pixel), ``tree`` (the camera ray, its hit, the Whitted terms
