@@ -119,8 +119,10 @@ blend --factory-startup --python scripts/blender/motion_probe.py -- \
     "$WORK/motion_camera/cycles.exr" "$WORK/motion_camera/prism.exr"
 since "$mark" "motion_probe:"
 # What Prism cannot show is said, once each: the nodes the export drops
-# (a Noise Texture on the cube), an object's motion blur, a sun's angle.
+# (a Noise Texture on the cube, a checker on a cube's Generated
+# coordinates), an object's motion blur, a sun's angle.
 for warning in "material 'vertex colours': the glTF export drops Noise Texture" \
+        "material 'box': the glTF export drops Checker Texture" \
         "Prism cannot key the motion of objects inside it; rendered sharp: 'emitter'" \
         "light 'sun': a sun's angle is not carried"; do
     if ! grep -qF "$warning" "$WORK/blender.log"; then

@@ -434,7 +434,13 @@ bpy.ops.mesh.primitive_plane_add(size=8.0, location=(0, 0, 0))
 bpy.context.active_object.name = "floor"
 bpy.context.active_object.data.materials.append(diffuse("floor"))
 bpy.ops.mesh.primitive_cube_add(size=1.0, location=(1.5, 1.0, 0.5))
-bpy.context.active_object.data.materials.append(diffuse("box", (0.6, 0.3, 0.2, 1.0)))
+box_material = diffuse("box", (0.6, 0.3, 0.2, 1.0))
+# A Checker Texture on Generated coordinates, which on a cube are not its
+# UV map: not carried, and named among the dropped nodes.
+box_checker = box_material.node_tree.nodes.new("ShaderNodeTexChecker")
+box_material.node_tree.links.new(box_checker.outputs["Color"],
+                                 box_material.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+bpy.context.active_object.data.materials.append(box_material)
 light_data = bpy.data.lights.new("area light", "AREA")
 light_data.shape, light_data.size, light_data.size_y = "RECTANGLE", 1.0, 0.5
 light_data.energy = 200.0
