@@ -276,7 +276,8 @@ pub struct RecordedPixel {
     pub pixel: DVec3,
     /// The recorded sample's radiance.
     pub sample: DVec3,
-    /// Its point on the lens (see [`camera_ray`]); `None` for a pinhole.
+    /// Its point on the lens, in world units along the camera's right and
+    /// up from the lens centre; `None` for a pinhole.
     pub lens: Option<glam::DVec2>,
     /// The instant it saw, in frames after the frame's start; `None`
     /// without an open shutter on a moving scene.
@@ -289,8 +290,8 @@ pub struct RecordedPixel {
 
 /// [`render_pixel`], with sample `recorded` (every sample: `None`) traced
 /// through `recorder`; under adaptive anti-aliasing the samples are the
-/// pixel's lattice points (see [`adaptive::pixel_recorded`]), and the
-/// pixel is its value in the render.
+/// pixel's lattice points, the corners and centres its subdivision
+/// reaches in order, and the pixel is its value in the render.
 #[allow(clippy::too_many_arguments)]
 pub fn render_pixel_recorded<R: Recorder>(
     scene: &Scene,
