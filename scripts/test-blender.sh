@@ -120,11 +120,12 @@ blend --factory-startup --python scripts/blender/motion_probe.py -- \
 since "$mark" "motion_probe:"
 # What Prism cannot show is said, once each: the nodes the export drops
 # (a Noise Texture on the cube, a checker on a cube's Generated
-# coordinates), an object's motion blur, a sun's angle.
+# coordinates), an object's motion blur, a sun's angle, a spot's radius.
 for warning in "material 'vertex colours': the glTF export drops Noise Texture" \
         "material 'box': the glTF export drops Checker Texture" \
         "Prism cannot key the motion of objects inside it; rendered sharp: 'emitter'" \
-        "light 'sun': a sun's angle is not carried"; do
+        "light 'sun': a sun's angle is not carried" \
+        "light 'spot light': a spot's radius is not carried"; do
     if ! grep -qF "$warning" "$WORK/blender.log"; then
         echo "FAIL: no warning \"$warning\" in $WORK/blender.log" >&2
         exit 1

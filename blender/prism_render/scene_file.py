@@ -238,11 +238,13 @@ def light_tables(depsgraph, everything=True):
         m = inst.matrix_world
         colour = toml_vector(light.color)
         if light.type in {"POINT", "SPOT"}:
-            r = light.shadow_soft_size if everything else 0.0
-            spot = light.type == "SPOT" and r == 0
-            if light.type == "SPOT" and r > 0:
-                notes.append(f"light '{obj.name}': a spot with a radius is a sphere light "
-                             "(soft shadows, no cone)")
+            # Prism's spot is a point: a spot keeps its cone (the pool's
+            # shape) and loses its radius (soft shadows), noted.
+            spot = light.type == "SPOT"
+            r = light.shadow_soft_size if everything and not spot else 0.0
+            if spot and light.shadow_soft_size > 0:
+                notes.append(f"light '{obj.name}': a spot's radius is not carried (Prism's spot "
+                             "is a point); hard shadows")
             kind = "spot" if spot else ("sphere" if r > 0 else "point")
             lines += [f"[lights.{name}]",
                       f'type = "{kind}"',
@@ -409,9 +411,10 @@ def scene_toml(depsgraph, glb_name, settings, motion=None):
     lines += light_lines
     notes += light_notes
     if settings.lights != "SCENE" and any(
-            o.type == "LIGHT" and o.data.type in {"POINT", "SPOT"} and o.data.shadow_soft_size > 0
+            o.type == "LIGHT" and o.data.type == "POINT" and o.data.shadow_soft_size > 0
             for o in scene.objects):
-        notes.append("light radii (soft shadows) are carried with Lights: Scene File; hard shadows")
+        notes.append("point lights' radii (soft shadows) are carried with Lights: Scene File; "
+                     "hard shadows")
     lines += [
         "[[objects]]",
         'type = "mesh"',

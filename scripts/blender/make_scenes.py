@@ -414,7 +414,7 @@ m.node_tree.nodes["Principled BSDF"].inputs["Emission Strength"].default_value =
 bpy.context.active_object.data.materials.append(m)
 light_data = bpy.data.lights.new("spot light", "SPOT")
 light_data.energy = 300.0
-light_data.shadow_soft_size = 0.0
+light_data.shadow_soft_size = 0.1  # not carried (Prism's spot is a point), noted
 light_data.spot_size = math.radians(60.0)
 light_data.spot_blend = 0.3
 light = bpy.data.objects.new("spot light", light_data)
