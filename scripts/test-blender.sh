@@ -18,8 +18,9 @@
 #  6. issue 29: the add-on installed by docs/blender.md's headless command;
 #     a spot's pool against Cycles' (spot_profile.py), the render's
 #     geometry (glb_mesh.py), depth of field (dof_probe.py), a checker
-#     floor, lens shift, a newcomer's three scenes, the warnings, and
-#     "Keep Files In" refused on an unsaved file.
+#     floor, lens shift, a newcomer's three scenes, the warnings,
+#     "Keep Files In" refused on an unsaved file, and no shadow-terminator
+#     steps on a smooth low-poly sphere (terminator_probe.py).
 # Work files: target/blender-test/. With --update-data the exports are
 # copied to tests/data/blender/ (commit them, with the Blender version).
 set -euo pipefail
@@ -118,6 +119,19 @@ mark=$(( $(wc -l <"$WORK/blender.log") + 1 ))
 blend --factory-startup --python scripts/blender/motion_probe.py -- \
     "$WORK/motion_camera/cycles.exr" "$WORK/motion_camera/prism.exr"
 since "$mark" "motion_probe:"
+# The shadow terminator: a smooth 32-segment UV sphere under a side sun
+# shades as the sphere its normals describe (within 2 % of E*N.L up to
+# the terminator, never darker along the meridian towards the light).
+term=$WORK/terminator
+mkdir -p "$term"
+blend --factory-startup --python scripts/blender/terminator_probe.py -- make "$term/terminator.blend"
+blend "$term/terminator.blend" --python scripts/blender/use_addon.py \
+    -E PRISM -o "$term/prism_#" -f 1 -- "$ZIP" "$PRISM" "$term/export" 1
+blend "$term/terminator.blend" -E CYCLES -o "$term/cycles_#" -f 1
+mark=$(( $(wc -l <"$WORK/blender.log") + 1 ))
+blend --factory-startup --python scripts/blender/terminator_probe.py -- \
+    measure "$term/prism_1.exr" "$term/cycles_1.exr"
+since "$mark" "terminator_probe:"
 # What Prism cannot show is said, once each: the nodes the export drops
 # (a Noise Texture on the cube, a checker on a cube's Generated
 # coordinates), an object's motion blur, a sun's angle, a spot's radius.
