@@ -520,7 +520,14 @@ pub fn rejected(scene: &Scene, ray: &Ray, hit: Option<&Hit>) -> (Vec<Intersectio
             (key, i)
         })
         .collect();
-    order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    // The nearest few first (a partial selection: a scene of a million
+    // objects is not sorted for eight), then those in order.
+    let nearest = |a: &(f64, u32), b: &(f64, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+    if order.len() > REJECTED {
+        order.select_nth_unstable_by(REJECTED, nearest);
+    }
+    let listed = order.len().min(REJECTED);
+    order[..listed].sort_by(nearest);
     let left_out = order.len().saturating_sub(REJECTED);
     let listed = order
         .iter()
