@@ -261,6 +261,29 @@ impl Bvh {
         }
     }
 
+    /// [`any`](Self::any) for the first `count` of K rays, in turns (see
+    /// `wide::any_stream`): bit k of the answer is set when ray k is
+    /// blocked, as `any` answers it alone.
+    #[inline]
+    pub(crate) fn any_stream_on<T: AnyTest, const K: usize>(
+        &self,
+        kernel: Kernel,
+        rays: &[NodeRay; K],
+        count: usize,
+        t_max: &[f64; K],
+        tests: &mut [T; K],
+    ) -> u32 {
+        if self.stack_need <= wide::STACK {
+            let mut stacks: [ArrayVec<_, { wide::STACK }>; K] =
+                std::array::from_fn(|_| ArrayVec::new());
+            kernel.any_stream(&self.wide, rays, count, t_max, &mut stacks, tests)
+        } else {
+            let mut stacks: [Vec<_>; K] =
+                std::array::from_fn(|_| Vec::with_capacity(self.stack_need));
+            kernel.any_stream(&self.wide, rays, count, t_max, &mut stacks, tests)
+        }
+    }
+
     /// Visits the item positions in every leaf whose box passes `keep`,
     /// descending only into boxes that pass it; stops and returns false as
     /// soon as `visit` does.

@@ -271,6 +271,11 @@ impl<F: FnMut(usize, f64) -> Option<f64>> ClosestTest for F {
 pub trait AnyTest {
     /// Whether item `position` is hit within the segment.
     fn test(&mut self, position: usize) -> bool;
+
+    /// Asks the cache for what testing the `count` items from `position`
+    /// will read (see [`ClosestTest::prefetch`]).
+    #[inline(always)]
+    fn prefetch(&self, _position: usize, _count: usize, _what: Fetch) {}
 }
 
 impl<F: FnMut(usize) -> bool> AnyTest for F {
@@ -491,6 +496,99 @@ pub fn closest_stream<L: Lanes, T: ClosestTest, const K: usize>(
             step[k] = next;
         }
     }
+}
+
+/// Any-hit traversal of the first `count` of K rays in turns, each ray
+/// with its own stack and leaf test: what [`any`] does for each, one step
+/// per turn (a node visit, a leaf's items asked for, its data asked for,
+/// or its test), with what a ray reads next prefetched at the end of its
+/// step, as [`closest_stream`] does. Leaves go on the stack beside
+/// interior nodes rather than being tested at once, so a ray may test its
+/// leaves in another order than [`any`]; whether some item blocks it does
+/// not depend on the order. Returns the mask of the rays blocked.
+#[inline(always)]
+pub fn any_stream<L: Lanes, T: AnyTest, const K: usize>(
+    lanes: L,
+    wide: &[WideNode],
+    rays: &[NodeRay; K],
+    count: usize,
+    t_max: &[f64; K],
+    stacks: &mut [impl Stack<StackEntry>; K],
+    tests: &mut [T; K],
+) -> u32 {
+    /// Where a ray's traversal stands.
+    #[derive(Clone, Copy)]
+    enum Step {
+        Node(usize),
+        /// A leaf's first item and count, its data asked for or not.
+        Leaf(usize, usize, Fetch),
+        Pop,
+    }
+    if wide.is_empty() {
+        return 0;
+    }
+    let limit: [f32; K] = std::array::from_fn(|k| NodeRay::box_limit(t_max[k]));
+    let mut step = [Step::Node(0); K];
+    let mut active: u32 = (1u32 << count.min(K)) - 1;
+    let mut blocked = 0u32;
+    while active != 0 {
+        let mut scan = active;
+        while scan != 0 {
+            let k = scan.trailing_zeros() as usize;
+            scan &= scan - 1;
+            let stack = &mut stacks[k];
+            let mut next = step[k];
+            match next {
+                Step::Node(at) => {
+                    let node = &wide[at];
+                    let (mut mask, _) = lanes.entries(node, &rays[k], limit[k]);
+                    while mask != 0 {
+                        let lane = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        stack.push(StackEntry {
+                            index: node.child[lane],
+                            count: node.count[lane].into(),
+                            entry: 0.0,
+                        });
+                    }
+                    next = Step::Pop;
+                }
+                Step::Leaf(start, items, Fetch::Items) => {
+                    tests[k].prefetch(start, items, Fetch::Data);
+                    next = Step::Leaf(start, items, Fetch::Data);
+                }
+                Step::Leaf(start, items, Fetch::Data) => {
+                    if (start..start + items).any(|p| tests[k].test(p)) {
+                        blocked |= 1 << k;
+                        active &= !(1 << k);
+                        continue;
+                    }
+                    next = Step::Pop;
+                }
+                Step::Pop => {}
+            }
+            if let Step::Pop = next {
+                match stack.pop() {
+                    None => {
+                        active &= !(1 << k);
+                        continue;
+                    }
+                    Some(e) => {
+                        let (at, items) = (e.index as usize, e.count as usize);
+                        next = if items == 0 {
+                            lanes.prefetch(&wide[at]);
+                            Step::Node(at)
+                        } else {
+                            tests[k].prefetch(at, items, Fetch::Items);
+                            Step::Leaf(at, items, Fetch::Items)
+                        };
+                    }
+                }
+            }
+            step[k] = next;
+        }
+    }
+    blocked
 }
 
 /// The lane in `mask` with the least `near` (the lowest such lane).

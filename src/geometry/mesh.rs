@@ -510,6 +510,48 @@ impl Mesh {
         self.bvh.any_on(kernel, node_ray, t_max, leaf)
     }
 
+    /// [`any_hit`](Self::any_hit) for each of `rays` (origin and
+    /// direction; `t_max[k]` ray k's limit), traced [`STREAM`] at a time in
+    /// turns as [`intersect_stream`](Self::intersect_stream) traces them:
+    /// for incoherent rays through a mesh larger than the cache. Bit k of
+    /// the answer is set when ray k is blocked, as `any_hit` answers it
+    /// alone.
+    ///
+    /// # Panics
+    /// If there are more than 32 rays, or `t_max` is not as long as `rays`.
+    pub fn any_hit_stream(&self, rays: &[(DVec3, DVec3)], t_min: f64, t_max: &[f64]) -> u32 {
+        self.any_hit_stream_on(simd::kernel(), rays, t_min, t_max)
+    }
+
+    /// [`any_hit_stream`](Self::any_hit_stream) on a given kernel.
+    pub(crate) fn any_hit_stream_on(
+        &self,
+        kernel: Kernel,
+        rays: &[(DVec3, DVec3)],
+        t_min: f64,
+        t_max: &[f64],
+    ) -> u32 {
+        assert!(rays.len() <= 32 && t_max.len() == rays.len());
+        let mut blocked = 0;
+        for (c, (rays, t_max)) in rays.chunks(STREAM).zip(t_max.chunks(STREAM)).enumerate() {
+            let ray = |k: usize| rays[k.min(rays.len() - 1)];
+            let mut limits = [f64::NEG_INFINITY; STREAM];
+            limits[..t_max.len()].copy_from_slice(t_max);
+            let mut tests: [BlockingRay; STREAM] = std::array::from_fn(|k| BlockingRay {
+                mesh: self,
+                ray: WatertightRay::new(ray(k).0, ray(k).1),
+                t_min,
+                t_max: limits[k],
+            });
+            let node_rays = std::array::from_fn(|k| NodeRay::new(ray(k).0, ray(k).1));
+            let mask = self
+                .bvh
+                .any_stream_on(kernel, &node_rays, rays.len(), &limits, &mut tests);
+            blocked |= mask << (c * STREAM);
+        }
+        blocked
+    }
+
     /// [`intersect`](Self::intersect) for each of up to [`PACKET`] rays
     /// (`rays[k]` is origin and direction, `t_max[k]` its limit, `hits[k]`
     /// its answer), traced together: coherent rays (neighbouring camera
@@ -710,17 +752,24 @@ impl ClosestTest for ClosestTriangle<'_> {
 
     #[inline(always)]
     fn prefetch(&self, position: usize, count: usize, what: Fetch) {
-        let triangles = &self.mesh.triangles[position..position + count];
-        match what {
-            // At most four triangles of 12 bytes: one or two lines.
-            Fetch::Items => {
-                simd::prefetch(&triangles[0]);
-                simd::prefetch(&triangles[count - 1]);
-            }
-            Fetch::Data => {
-                for &i in triangles.iter().flatten() {
-                    simd::prefetch(&self.mesh.positions[i as usize]);
-                }
+        prefetch_triangles(self.mesh, position, count, what);
+    }
+}
+
+/// Asks the cache for what testing the `count` triangles from leaf
+/// position `position` reads (see `ClosestTest::prefetch`).
+#[inline(always)]
+fn prefetch_triangles(mesh: &Mesh, position: usize, count: usize, what: Fetch) {
+    let triangles = &mesh.triangles[position..position + count];
+    match what {
+        // At most four triangles of 12 bytes: one or two lines.
+        Fetch::Items => {
+            simd::prefetch(&triangles[0]);
+            simd::prefetch(&triangles[count - 1]);
+        }
+        Fetch::Data => {
+            for &i in triangles.iter().flatten() {
+                simd::prefetch(&mesh.positions[i as usize]);
             }
         }
     }
@@ -838,6 +887,28 @@ impl<const P: u8> AnyTest for BlockingTriangle<'_, P> {
     fn test(&mut self, position: usize) -> bool {
         let [a, b, c] = self.mesh.corners(position);
         triangle_hit_as::<P>(&self.ray, a, b, c, self.t_min, self.t_max).is_some()
+    }
+}
+
+/// The any-hit leaf test of one ray of a stream: [`BlockingTriangle`]'s,
+/// the ray's permutation picked per test (the rays of a stream differ).
+struct BlockingRay<'a> {
+    mesh: &'a Mesh,
+    ray: WatertightRay,
+    t_min: f64,
+    t_max: f64,
+}
+
+impl AnyTest for BlockingRay<'_> {
+    #[inline(always)]
+    fn test(&mut self, position: usize) -> bool {
+        let [a, b, c] = self.mesh.corners(position);
+        triangle_hit_dispatched(&self.ray, a, b, c, self.t_min, self.t_max).is_some()
+    }
+
+    #[inline(always)]
+    fn prefetch(&self, position: usize, count: usize, what: Fetch) {
+        prefetch_triangles(self.mesh, position, count, what);
     }
 }
 
@@ -1170,6 +1241,19 @@ pub(crate) mod tests {
                     let alone = mesh.intersect_on(kernel, o, d, 0.0, t_max[k]);
                     assert!(same_hit(streamed[k], alone), "ray {k}, {kernel:?}");
                     hits_seen += usize::from(alone.is_some());
+                }
+                // Any hit: in groups of up to 32 (a last one shorter).
+                for (g, (rays, t_max)) in rays.chunks(32).zip(t_max.chunks(32)).enumerate() {
+                    let mask = mesh.any_hit_stream_on(kernel, rays, 0.0, t_max);
+                    for (k, &(o, d)) in rays.iter().enumerate() {
+                        let alone = mesh.any_hit_on(kernel, o, d, 0.0, t_max[k]);
+                        assert_eq!(
+                            mask & (1 << k) != 0,
+                            alone,
+                            "ray {}, {kernel:?}",
+                            32 * g + k
+                        );
+                    }
                 }
             }
             assert!(hits_seen > 1_000, "{hits_seen}");

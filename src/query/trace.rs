@@ -222,12 +222,17 @@ impl RayScene {
         let world: [(DVec3, DVec3); PACKET] =
             std::array::from_fn(|k| rays.ray(first + k.min(n - 1)));
         let coherent = coherent(&world[..n], scale);
+        let skip_box = !coherent && self.meshes.len() == 1;
         for (id, placed) in self.meshes.iter().enumerate() {
             let mut reach = [f64::NEG_INFINITY; PACKET];
             let mut live = 0;
             for k in 0..n {
                 let limit = out[k].t.min(rays.t_max);
-                if meets(&placed.bounds, world[k].0, world[k].1, rays.t_min, limit) {
+                // Incoherent rays through a scene of one mesh leave the
+                // box test to its tree's root (a ray that misses the box
+                // finds no hit there either); a packet's rays that miss it
+                // are better left out of the packet.
+                if skip_box || meets(&placed.bounds, world[k].0, world[k].1, rays.t_min, limit) {
                     reach[k] = limit;
                     live += 1;
                 }
@@ -268,18 +273,21 @@ impl RayScene {
         let world: [(DVec3, DVec3); PACKET] =
             std::array::from_fn(|k| rays.ray(first + k.min(n - 1)));
         let coherent = coherent(&world[..n], scale);
+        // As in `nearest_group`.
+        let skip_box = !coherent && self.meshes.len() == 1;
         for placed in &self.meshes {
             let mut reach = [f64::NEG_INFINITY; PACKET];
             let mut live = 0;
             for k in 0..n {
                 if !out[k]
-                    && meets(
-                        &placed.bounds,
-                        world[k].0,
-                        world[k].1,
-                        rays.t_min,
-                        rays.t_max,
-                    )
+                    && (skip_box
+                        || meets(
+                            &placed.bounds,
+                            world[k].0,
+                            world[k].1,
+                            rays.t_min,
+                            rays.t_max,
+                        ))
                 {
                     reach[k] = rays.t_max;
                     live += 1;
@@ -294,6 +302,13 @@ impl RayScene {
                 let mask = placed
                     .mesh
                     .any_hit_packet(&local[..n], rays.t_min, &reach[..n]);
+                for (k, b) in out.iter_mut().enumerate() {
+                    *b |= mask & (1 << k) != 0;
+                }
+            } else if live > 1 && placed.mesh.memory_bytes() > STREAM_BYTES {
+                let mask = placed
+                    .mesh
+                    .any_hit_stream(&local[..n], rays.t_min, &reach[..n]);
                 for (k, b) in out.iter_mut().enumerate() {
                     *b |= mask & (1 << k) != 0;
                 }

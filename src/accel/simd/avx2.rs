@@ -366,6 +366,33 @@ pub fn closest_stream<T: ClosestTest, const K: usize>(
     unsafe { run(proof, nodes, rays, count, t_max, stacks, tests) }
 }
 
+/// `wide::any_stream` compiled for AVX2.
+#[inline]
+pub fn any_stream<T: AnyTest, const K: usize>(
+    proof: Avx2,
+    nodes: &[WideNode],
+    rays: &[NodeRay; K],
+    count: usize,
+    t_max: &[f64; K],
+    stacks: &mut [impl Stack<StackEntry>; K],
+    tests: &mut [T; K],
+) -> u32 {
+    #[target_feature(enable = "avx2")]
+    fn run<T: AnyTest, const K: usize>(
+        proof: Avx2,
+        nodes: &[WideNode],
+        rays: &[NodeRay; K],
+        count: usize,
+        t_max: &[f64; K],
+        stacks: &mut [impl Stack<StackEntry>; K],
+        tests: &mut [T; K],
+    ) -> u32 {
+        wide::any_stream(proof, nodes, rays, count, t_max, stacks, tests)
+    }
+    // SAFETY: `proof` exists only where `detect` found AVX2.
+    unsafe { run(proof, nodes, rays, count, t_max, stacks, tests) }
+}
+
 /// `packet::closest` compiled for AVX2.
 #[inline]
 pub fn closest_packet(

@@ -166,6 +166,26 @@ impl Kernel {
         }
     }
 
+    /// Any-hit traversal of up to K rays in turns (see `wide::any_stream`)
+    /// on this kernel: the mask of the rays blocked.
+    #[inline]
+    pub(crate) fn any_stream<T: AnyTest, const K: usize>(
+        self,
+        nodes: &[WideNode],
+        rays: &[NodeRay; K],
+        count: usize,
+        t_max: &[f64; K],
+        stacks: &mut [impl Stack<StackEntry>; K],
+        tests: &mut [T; K],
+    ) -> u32 {
+        match self {
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2(k) => avx2::any_stream(k, nodes, rays, count, t_max, stacks, tests),
+            Kernel::Sse2 => wide::any_stream(Sse2, nodes, rays, count, t_max, stacks, tests),
+            Kernel::Scalar => wide::any_stream(Scalar, nodes, rays, count, t_max, stacks, tests),
+        }
+    }
+
     /// Any-hit traversal (see `wide::any`) on this kernel.
     #[inline]
     pub(crate) fn any(
