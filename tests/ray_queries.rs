@@ -973,10 +973,14 @@ fn big_meshes_take_streams_with_the_same_answers() {
     let batch = rays(&o, &d);
     let hits = scene.intersect(&batch, &options(2)).unwrap();
     let blocked = scene.occluded(&batch, &options(2)).unwrap();
+    let counts = scene.count_intersections(&batch, &options(2)).unwrap();
     let mut seen = 0;
     for (k, &blocked) in blocked.iter().enumerate() {
         let (ro, rd) = batch.ray(k);
         let single = mesh.intersect(ro, rd, 0.0, f64::INFINITY);
+        let mut count = 0;
+        mesh.each_hit(ro, rd, 0.0, f64::INFINITY, |_, _| count += 1);
+        assert_eq!(counts[k], count, "ray {k}");
         assert_eq!(
             hits.t[k].to_bits(),
             single.map_or(f64::INFINITY, |h| h.t).to_bits(),
@@ -994,6 +998,7 @@ fn big_meshes_take_streams_with_the_same_answers() {
                 hits.triangle_id[k],
                 brute.first().map_or(-1, |b| i64::from(b.2))
             );
+            assert_eq!(counts[k] as usize, brute.len(), "ray {k}");
         }
     }
     assert!(seen > 1000, "{seen}");

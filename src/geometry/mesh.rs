@@ -358,6 +358,49 @@ impl Mesh {
             .closest(&NodeRay::new(origin, direction), t_max, test);
     }
 
+    /// How many triangles each of `rays` hits with t in (t_min, t_max[k])
+    /// (what [`each_hit`](Self::each_hit) reports for it, counted), traced
+    /// [`STREAM`] at a time in turns as
+    /// [`intersect_stream`](Self::intersect_stream) traces them: for
+    /// incoherent rays through a mesh larger than the cache. `counts[k]`
+    /// is added to.
+    ///
+    /// # Panics
+    /// If `t_max` or `counts` is not as long as `rays`.
+    pub fn count_hits_stream(
+        &self,
+        rays: &[(DVec3, DVec3)],
+        t_min: f64,
+        t_max: &[f64],
+        counts: &mut [u32],
+    ) {
+        assert!(t_max.len() == rays.len() && counts.len() == rays.len());
+        let kernel = simd::kernel();
+        for ((rays, t_max), counts) in rays
+            .chunks(STREAM)
+            .zip(t_max.chunks(STREAM))
+            .zip(counts.chunks_mut(STREAM))
+        {
+            let ray = |k: usize| rays[k.min(rays.len() - 1)];
+            let mut limits = [f64::NEG_INFINITY; STREAM];
+            limits[..t_max.len()].copy_from_slice(t_max);
+            let mut tests: [CountingTriangles; STREAM] =
+                std::array::from_fn(|k| CountingTriangles {
+                    mesh: self,
+                    ray: WatertightRay::new(ray(k).0, ray(k).1),
+                    t_min,
+                    t_max: limits[k],
+                    count: 0,
+                });
+            let node_rays = std::array::from_fn(|k| NodeRay::new(ray(k).0, ray(k).1));
+            self.bvh
+                .closest_stream_on(kernel, &node_rays, rays.len(), &mut limits, &mut tests);
+            for (count, test) in counts.iter_mut().zip(&tests) {
+                *count = count.saturating_add(test.count);
+            }
+        }
+    }
+
     #[inline(always)]
     fn corners(&self, triangle: usize) -> [DVec3; 3] {
         let [a, b, c] = self.triangles[triangle];
@@ -887,6 +930,33 @@ impl<const P: u8> AnyTest for BlockingTriangle<'_, P> {
     fn test(&mut self, position: usize) -> bool {
         let [a, b, c] = self.mesh.corners(position);
         triangle_hit_as::<P>(&self.ray, a, b, c, self.t_min, self.t_max).is_some()
+    }
+}
+
+/// The counting leaf test of one ray of a stream: each triangle hit within
+/// the fixed (t_min, t_max) counted, as `each_hit` reports it; the reach
+/// never shrinks.
+struct CountingTriangles<'a> {
+    mesh: &'a Mesh,
+    ray: WatertightRay,
+    t_min: f64,
+    t_max: f64,
+    count: u32,
+}
+
+impl ClosestTest for CountingTriangles<'_> {
+    #[inline(always)]
+    fn test(&mut self, position: usize, _reach: f64) -> Option<f64> {
+        let [a, b, c] = self.mesh.corners(position);
+        if triangle_hit(&self.ray, a, b, c, self.t_min, self.t_max).is_some() {
+            self.count = self.count.saturating_add(1);
+        }
+        None
+    }
+
+    #[inline(always)]
+    fn prefetch(&self, position: usize, count: usize, what: Fetch) {
+        prefetch_triangles(self.mesh, position, count, what);
     }
 }
 

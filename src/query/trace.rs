@@ -16,7 +16,7 @@ use super::scene::RayScene;
 use crate::accel::PACKET;
 use crate::geometry::Aabb;
 use crate::geometry::cuboid::slab_interval;
-use crate::geometry::mesh::MeshHit;
+use crate::geometry::mesh::{MeshHit, STREAM};
 
 /// Rays per task, and between checks of the cancel flag.
 const CHUNK: usize = 1024;
@@ -138,6 +138,13 @@ impl RayScene {
         options: &QueryOptions,
     ) -> Result<Vec<u32>, QueryError> {
         let mut counts = vec![0u32; rays.len()];
+        let scale = self.bounds().diagonal();
+        // Groups of rays pay only where a mesh may take streams (ray by
+        // ray, the bunny's camera rays were 5 % faster).
+        let streams = self
+            .meshes
+            .iter()
+            .any(|p| p.mesh.memory_bytes() > STREAM_BYTES);
         options.run(|| {
             counts
                 .par_chunks_mut(CHUNK)
@@ -146,10 +153,16 @@ impl RayScene {
                     if options.cancelled() {
                         return Err(QueryError::Cancelled);
                     }
-                    for (k, count) in out.iter_mut().enumerate() {
-                        let mut n = 0u32;
-                        self.crossings(rays, c * CHUNK + k, |_| n = n.saturating_add(1));
-                        *count = n;
+                    if !streams {
+                        for (k, count) in out.iter_mut().enumerate() {
+                            let mut n = 0u32;
+                            self.crossings(rays, c * CHUNK + k, |_| n = n.saturating_add(1));
+                            *count = n;
+                        }
+                        return Ok(());
+                    }
+                    for (g, group) in out.chunks_mut(STREAM).enumerate() {
+                        self.count_group(rays, c * CHUNK + g * STREAM, group, scale);
                     }
                     Ok(())
                 })
@@ -317,6 +330,56 @@ impl RayScene {
                     out[k] = placed
                         .mesh
                         .any_hit(local[k].0, local[k].1, rays.t_min, reach[k]);
+                }
+            }
+        }
+    }
+
+    /// The hit counts of rays `first..first + out.len()` (at most
+    /// [`STREAM`]): incoherent ones through a large mesh in a stream,
+    /// otherwise ray by ray (a camera's rays share their cache lines
+    /// already, and were slower in turns).
+    fn count_group(&self, rays: &Rays, first: usize, out: &mut [u32], scale: f64) {
+        let n = out.len();
+        out.fill(0);
+        let world: [(DVec3, DVec3); STREAM] =
+            std::array::from_fn(|k| rays.ray(first + k.min(n - 1)));
+        // Asked only of a group into a large mesh.
+        let mut coherent_group = None;
+        for placed in &self.meshes {
+            let mut reach = [f64::NEG_INFINITY; STREAM];
+            let mut live = 0;
+            for k in 0..n {
+                if meets(
+                    &placed.bounds,
+                    world[k].0,
+                    world[k].1,
+                    rays.t_min,
+                    rays.t_max,
+                ) {
+                    reach[k] = rays.t_max;
+                    live += 1;
+                }
+            }
+            if live == 0 {
+                continue;
+            }
+            let local: [(DVec3, DVec3); STREAM] =
+                std::array::from_fn(|k| placed.local(world[k].0, world[k].1));
+            let mesh = &placed.mesh;
+            if live > 1
+                && mesh.memory_bytes() > STREAM_BYTES
+                && !*coherent_group.get_or_insert_with(|| coherent(&world[..n], scale))
+            {
+                mesh.count_hits_stream(&local[..n], rays.t_min, &reach[..n], out);
+            } else {
+                for k in (0..n).filter(|&k| reach[k] > f64::NEG_INFINITY) {
+                    let (o, d) = local[k];
+                    let mut hits = 0u32;
+                    mesh.each_hit(o, d, rays.t_min, reach[k], |_, _| {
+                        hits = hits.saturating_add(1);
+                    });
+                    out[k] = out[k].saturating_add(hits);
                 }
             }
         }
