@@ -37,11 +37,39 @@ pub struct RayScene {
 }
 
 impl RayScene {
+    /// The scene queries read now (callable with or without the GIL).
     fn current(&self) -> PyResult<Arc<Scene>> {
         self.scene
             .read()
             .map(|s| Arc::clone(&s))
-            .map_err(|_| PyRuntimeError::new_err("the ray scene was poisoned by a failed build"))
+            .map_err(|_| poisoned())
+    }
+
+    /// Checks a query's rays (`origins`, `directions`, `tmin`, `tmax`,
+    /// `threads`, each error naming its argument) and runs `job` on them
+    /// without the GIL (see [`run`]).
+    #[allow(clippy::too_many_arguments)]
+    fn query_rays<'py, T: Send>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        tmin: f64,
+        tmax: f64,
+        threads: Option<i64>,
+        job: impl FnOnce(&Scene, &Rays, &QueryOptions) -> Result<T, QueryError> + Send,
+    ) -> PyResult<(T, usize)> {
+        let scene = self.current()?;
+        let (o, d) = (
+            Coords::of("origins", origins)?,
+            Coords::of("directions", directions)?,
+        );
+        let rays = Rays::new(o.slice()?, d.slice()?, tmin, tmax).map_err(query_error)?;
+        let n = rays.len();
+        let answer = run(py, n, threads_arg(threads)?, |options| {
+            job(&scene, &rays, options)
+        })?;
+        Ok((answer, n))
     }
 }
 
@@ -72,7 +100,7 @@ impl RayScene {
         let transform = transform.map(matrix).transpose()?;
         py.detach(|| {
             let _adding = self.adding.lock().map_err(|_| poisoned())?;
-            let mut scene = Scene::clone(self.current_unlocked()?.as_ref());
+            let mut scene = Scene::clone(self.current()?.as_ref());
             let id = scene
                 .add_mesh(vertices, &faces, transform)
                 .map_err(query_error)?;
@@ -95,7 +123,7 @@ impl RayScene {
             .map_err(|e| PyValueError::new_err(format!("allow_read: {e}")))?;
         py.detach(|| {
             let _adding = self.adding.lock().map_err(|_| poisoned())?;
-            let mut scene = Scene::clone(self.current_unlocked()?.as_ref());
+            let mut scene = Scene::clone(self.current()?.as_ref());
             let ids = scene.add_file(&path, &options).map_err(query_error)?;
             *self.scene.write().map_err(|_| poisoned())? = Arc::new(scene);
             Ok(ids)
@@ -139,16 +167,15 @@ impl RayScene {
         tmax: f64,
         threads: Option<i64>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let scene = self.current()?;
-        let (o, d) = (
-            Coords::of("origins", origins)?,
-            Coords::of("directions", directions)?,
-        );
-        let rays = Rays::new(o.slice()?, d.slice()?, tmin, tmax).map_err(query_error)?;
-        let n = rays.len();
-        let hits = run(py, n, threads_arg(threads)?, |options| {
-            scene.intersect(&rays, options)
-        })?;
+        let (hits, n) = self.query_rays(
+            py,
+            origins,
+            directions,
+            tmin,
+            tmax,
+            threads,
+            |scene, rays, options| scene.intersect(rays, options),
+        )?;
         let out = PyDict::new(py);
         out.set_item("t", hits.t.into_pyarray(py))?;
         out.set_item("mesh_id", hits.mesh_id.into_pyarray(py))?;
@@ -170,15 +197,15 @@ impl RayScene {
         tmax: f64,
         threads: Option<i64>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let scene = self.current()?;
-        let (o, d) = (
-            Coords::of("origins", origins)?,
-            Coords::of("directions", directions)?,
-        );
-        let rays = Rays::new(o.slice()?, d.slice()?, tmin, tmax).map_err(query_error)?;
-        let blocked = run(py, rays.len(), threads_arg(threads)?, |options| {
-            scene.occluded(&rays, options)
-        })?;
+        let (blocked, _) = self.query_rays(
+            py,
+            origins,
+            directions,
+            tmin,
+            tmax,
+            threads,
+            |scene, rays, options| scene.occluded(rays, options),
+        )?;
         Ok(blocked.into_pyarray(py).into_any())
     }
 
@@ -193,15 +220,15 @@ impl RayScene {
         tmax: f64,
         threads: Option<i64>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let scene = self.current()?;
-        let (o, d) = (
-            Coords::of("origins", origins)?,
-            Coords::of("directions", directions)?,
-        );
-        let rays = Rays::new(o.slice()?, d.slice()?, tmin, tmax).map_err(query_error)?;
-        let counts = run(py, rays.len(), threads_arg(threads)?, |options| {
-            scene.count_intersections(&rays, options)
-        })?;
+        let (counts, _) = self.query_rays(
+            py,
+            origins,
+            directions,
+            tmin,
+            tmax,
+            threads,
+            |scene, rays, options| scene.count_intersections(rays, options),
+        )?;
         Ok(counts.into_pyarray(py).into_any())
     }
 
@@ -217,15 +244,15 @@ impl RayScene {
         tmax: f64,
         threads: Option<i64>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let scene = self.current()?;
-        let (o, d) = (
-            Coords::of("origins", origins)?,
-            Coords::of("directions", directions)?,
-        );
-        let rays = Rays::new(o.slice()?, d.slice()?, tmin, tmax).map_err(query_error)?;
-        let all = run(py, rays.len(), threads_arg(threads)?, |options| {
-            scene.all_intersections(&rays, options)
-        })?;
+        let (all, _) = self.query_rays(
+            py,
+            origins,
+            directions,
+            tmin,
+            tmax,
+            threads,
+            |scene, rays, options| scene.all_intersections(rays, options),
+        )?;
         let out = PyDict::new(py);
         out.set_item("offsets", all.offsets.into_pyarray(py))?;
         out.set_item("t", all.t.into_pyarray(py))?;
@@ -251,16 +278,6 @@ impl RayScene {
             scene.contains(p, options)
         })?;
         Ok(inside.into_pyarray(py).into_any())
-    }
-}
-
-impl RayScene {
-    /// [`current`](Self::current) without the GIL (inside `detach`).
-    fn current_unlocked(&self) -> Result<Arc<Scene>, PyErr> {
-        self.scene
-            .read()
-            .map(|s| Arc::clone(&s))
-            .map_err(|_| poisoned())
     }
 }
 

@@ -12,7 +12,7 @@ use rayon::prelude::*;
 
 use super::QueryError;
 use super::rays::{Crossings, Hits, QueryOptions, Rays};
-use super::scene::RayScene;
+use super::scene::{Placed, RayScene};
 use crate::accel::PACKET;
 use crate::geometry::Aabb;
 use crate::geometry::cuboid::slab_interval;
@@ -237,19 +237,14 @@ impl RayScene {
         let coherent = coherent(&world[..n], scale);
         let skip_box = !coherent && self.meshes.len() == 1;
         for (id, placed) in self.meshes.iter().enumerate() {
-            let mut reach = [f64::NEG_INFINITY; PACKET];
-            let mut live = 0;
-            for k in 0..n {
-                let limit = out[k].t.min(rays.t_max);
-                // Incoherent rays through a scene of one mesh leave the
-                // box test to its tree's root (a ray that misses the box
-                // finds no hit there either); a packet's rays that miss it
-                // are better left out of the packet.
-                if skip_box || meets(&placed.bounds, world[k].0, world[k].1, rays.t_min, limit) {
-                    reach[k] = limit;
-                    live += 1;
-                }
-            }
+            // Incoherent rays through a scene of one mesh leave the box
+            // test to its tree's root (a ray that misses the box finds no
+            // hit there either); a packet's rays that miss it are better
+            // left out of the packet.
+            let (reach, live) =
+                reach_into::<PACKET>(placed, &world[..n], rays.t_min, skip_box, |k| {
+                    Some(out[k].t.min(rays.t_max))
+                });
             if live == 0 {
                 continue;
             }
@@ -289,23 +284,11 @@ impl RayScene {
         // As in `nearest_group`.
         let skip_box = !coherent && self.meshes.len() == 1;
         for placed in &self.meshes {
-            let mut reach = [f64::NEG_INFINITY; PACKET];
-            let mut live = 0;
-            for k in 0..n {
-                if !out[k]
-                    && (skip_box
-                        || meets(
-                            &placed.bounds,
-                            world[k].0,
-                            world[k].1,
-                            rays.t_min,
-                            rays.t_max,
-                        ))
-                {
-                    reach[k] = rays.t_max;
-                    live += 1;
-                }
-            }
+            // Rays already blocked are done.
+            let (reach, live) =
+                reach_into::<PACKET>(placed, &world[..n], rays.t_min, skip_box, |k| {
+                    (!out[k]).then_some(rays.t_max)
+                });
             if live == 0 {
                 continue;
             }
@@ -347,20 +330,8 @@ impl RayScene {
         // Asked only of a group into a large mesh.
         let mut coherent_group = None;
         for placed in &self.meshes {
-            let mut reach = [f64::NEG_INFINITY; STREAM];
-            let mut live = 0;
-            for k in 0..n {
-                if meets(
-                    &placed.bounds,
-                    world[k].0,
-                    world[k].1,
-                    rays.t_min,
-                    rays.t_max,
-                ) {
-                    reach[k] = rays.t_max;
-                    live += 1;
-                }
-            }
+            let (reach, live) =
+                reach_into::<STREAM>(placed, &world[..n], rays.t_min, false, |_| Some(rays.t_max));
             if live == 0 {
                 continue;
             }
@@ -404,6 +375,30 @@ impl RayScene {
             });
         }
     }
+}
+
+/// How far each of `world`'s rays reaches into `placed`: `limit(k)`, or
+/// −∞ (left out) where that is `None` or, unless `skip_box`, the ray misses
+/// the mesh's box within it; and how many are not left out.
+#[inline(always)]
+fn reach_into<const N: usize>(
+    placed: &Placed,
+    world: &[(DVec3, DVec3)],
+    t_min: f64,
+    skip_box: bool,
+    limit: impl Fn(usize) -> Option<f64>,
+) -> ([f64; N], usize) {
+    let mut reach = [f64::NEG_INFINITY; N];
+    let mut live = 0;
+    for (k, &(origin, direction)) in world.iter().enumerate() {
+        if let Some(limit) = limit(k)
+            && (skip_box || meets(&placed.bounds, origin, direction, t_min, limit))
+        {
+            reach[k] = limit;
+            live += 1;
+        }
+    }
+    (reach, live)
 }
 
 /// Whether the ray's stretch (t_min, t_max) may meet box `b`: the slab
