@@ -96,12 +96,16 @@ impl Camera {
     /// so its centre is (i + 0.5, j + 0.5).
     #[inline]
     pub fn ray(&self, x: f64, y: f64, width: u32, height: u32) -> Ray {
+        self.film(width, height).ray(x, y)
+    }
+
+    /// The film of a `width` × `height` image, its extents worked out once
+    /// for all the rays through it.
+    #[inline]
+    pub fn film(&self, width: u32, height: u32) -> FilmRays {
         let (w, h) = (f64::from(width), f64::from(height));
         let aspect = w / h;
-        // Film coordinates in [-1, 1], y up.
-        let sx = 2.0 * x / w - 1.0;
-        let sy = 1.0 - 2.0 * y / h;
-        match self.projection {
+        let (half_w, half_h, ox, oy) = match self.projection {
             Projection::Perspective { fov, axis } => {
                 let half = transcendental::tan(0.5 * fov);
                 let (half_w, half_h) = match axis {
@@ -109,23 +113,102 @@ impl Camera {
                     FovAxis::Horizontal => (half, half / aspect),
                 };
                 // The shift is in extents along the fov axis, 2·half.
-                let (ox, oy) = (2.0 * half * self.shift.x, 2.0 * half * self.shift.y);
-                let dir =
-                    self.forward + (sx * half_w + ox) * self.right + (sy * half_h + oy) * self.up;
-                Ray::new(self.position, dir)
+                (
+                    half_w,
+                    half_h,
+                    2.0 * half * self.shift.x,
+                    2.0 * half * self.shift.y,
+                )
             }
             Projection::Orthographic { view_height } => {
                 let half_h = 0.5 * view_height;
-                let (ox, oy) = (view_height * self.shift.x, view_height * self.shift.y);
-                let origin = self.position
-                    + (sx * half_h * aspect + ox) * self.right
-                    + (sy * half_h + oy) * self.up;
+                (
+                    half_h * aspect,
+                    half_h,
+                    view_height * self.shift.x,
+                    view_height * self.shift.y,
+                )
+            }
+        };
+        FilmRays {
+            camera: *self,
+            w,
+            h,
+            aspect,
+            half_w,
+            half_h,
+            ox,
+            oy,
+        }
+    }
+}
+
+/// A camera's film at one image size: the rays through its points, with
+/// the tangent of the field of view taken once rather than per ray (the
+/// same bits as [`Camera::ray`], which goes through it).
+#[derive(Clone, Copy, Debug)]
+pub struct FilmRays {
+    camera: Camera,
+    w: f64,
+    h: f64,
+    aspect: f64,
+    /// Half the film's extents, at unit distance (perspective) or in
+    /// world units (orthographic: the width is half_h·aspect).
+    half_w: f64,
+    half_h: f64,
+    /// The lens shift, in the same units.
+    ox: f64,
+    oy: f64,
+}
+
+impl FilmRays {
+    /// The camera the film belongs to.
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+
+    /// The ray through film point (x, y), in pixels (see [`Camera::ray`]).
+    #[inline]
+    pub fn ray(&self, x: f64, y: f64) -> Ray {
+        let c = &self.camera;
+        // Film coordinates in [-1, 1], y up.
+        let sx = 2.0 * x / self.w - 1.0;
+        let sy = 1.0 - 2.0 * y / self.h;
+        match c.projection {
+            Projection::Perspective { .. } => {
+                let dir = c.forward
+                    + (sx * self.half_w + self.ox) * c.right
+                    + (sy * self.half_h + self.oy) * c.up;
+                Ray::new(c.position, dir)
+            }
+            Projection::Orthographic { .. } => {
+                // sx·half_h·aspect in that order: the bits of the rays
+                // from before the film was cached.
+                let origin = c.position
+                    + (sx * self.half_h * self.aspect + self.ox) * c.right
+                    + (sy * self.half_h + self.oy) * c.up;
                 Ray {
                     origin,
-                    direction: self.forward,
+                    direction: c.forward,
                 }
             }
         }
+    }
+
+    /// The ray through film point (x, y) and point `disk` of the unit disk
+    /// on the lens (see [`Camera::ray_through_lens`]).
+    #[inline]
+    pub fn ray_through_lens(&self, x: f64, y: f64, disk: DVec2) -> Ray {
+        let pinhole = self.ray(x, y);
+        let c = &self.camera;
+        let Some(lens) = c.lens else {
+            return pinhole;
+        };
+        // The pinhole ray's direction is unit: it reaches the plane in
+        // focus after focus_distance / cos θ.
+        let focus = pinhole.at(lens.focus_distance / pinhole.direction.dot(c.forward));
+        let origin = pinhole.origin + lens.radius * (disk.x * c.right + disk.y * c.up);
+        Ray::new(origin, focus - origin)
     }
 }
 
@@ -140,15 +223,7 @@ impl Camera {
     /// Without a lens, the pinhole ray itself.
     #[inline]
     pub fn ray_through_lens(&self, x: f64, y: f64, width: u32, height: u32, disk: DVec2) -> Ray {
-        let pinhole = self.ray(x, y, width, height);
-        let Some(lens) = self.lens else {
-            return pinhole;
-        };
-        // The pinhole ray's direction is unit: it reaches the plane in
-        // focus after focus_distance / cos θ.
-        let focus = pinhole.at(lens.focus_distance / pinhole.direction.dot(self.forward));
-        let origin = pinhole.origin + lens.radius * (disk.x * self.right + disk.y * self.up);
-        Ray::new(origin, focus - origin)
+        self.film(width, height).ray_through_lens(x, y, disk)
     }
 
     /// Where `point` appears on the film of a `width` × `height` image, in

@@ -17,7 +17,7 @@ pub use shadow::{Blocker, FeelerBatch, ShadowCandidates};
 pub use simd::{NodePacket, NodeRay, PACKET, SimdPath, simd_path};
 
 use bvh::Bvh;
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 use packet::PacketClosestTest;
 
 use crate::geometry::{Aabb, Hit, ShapeHit};
@@ -138,6 +138,17 @@ impl Aggregate {
         }
     }
 
+    /// Texture coordinates at `hit`, as its shape defines them
+    /// ([`Shape::uv`]); asked for by textures that use them.
+    pub fn uv(&self, hit: &Hit) -> DVec2 {
+        let shape = &self.primitives[hit.primitive as usize].shape;
+        let carried = ShapeHit {
+            uv: hit.shape_uv,
+            ..ShapeHit::geometric(hit.t, hit.normal, hit.front_face)
+        };
+        shape.uv(hit.point, &carried)
+    }
+
     /// The hit of `ray` on primitive `primitive` at `h`.
     #[inline]
     fn hit(&self, ray: &Ray, primitive: u32, h: ShapeHit) -> Hit {
@@ -149,7 +160,7 @@ impl Aggregate {
             normal: h.normal,
             front_face: h.front_face,
             shading_normal: h.shading_normal,
-            uv: p.shape.uv(point, &h),
+            shape_uv: h.uv,
             color: h.color,
             primitive,
             material: h.material.unwrap_or(p.material),
@@ -315,7 +326,7 @@ mod tests {
             let v = [h.point, h.normal, h.shading_normal, h.color]
                 .iter()
                 .flat_map(|v| v.to_array())
-                .chain([h.t, h.uv.x, h.uv.y])
+                .chain([h.t, h.shape_uv.x, h.shape_uv.y])
                 .map(f64::to_bits)
                 .collect();
             (v, h.primitive, h.material, h.front_face)

@@ -16,7 +16,8 @@ pub struct ShapeHit {
     /// Unit normal for shading (interpolated on smooth meshes; else `normal`).
     pub shading_normal: DVec3,
     /// Texture coordinates, where the shape computes them during the test
-    /// (meshes); analytic shapes give theirs after the closest hit is known.
+    /// (meshes, CSG); analytic shapes give theirs when shading asks for
+    /// them (`Aggregate::uv`).
     pub uv: DVec2,
     /// Vertex colour at the hit (white where the shape has none).
     pub color: DVec3,
@@ -58,8 +59,12 @@ pub struct Hit {
     pub front_face: bool,
     /// Unit normal for shading, on the same side as `normal`.
     pub shading_normal: DVec3,
-    /// Texture coordinates.
-    pub uv: DVec2,
+    /// Texture coordinates the shape's hit carried: a mesh's interpolated
+    /// ones, a CSG part's own. Other shapes' are worked out only when
+    /// shading asks for them ([`Aggregate::uv`](crate::accel::Aggregate::uv)):
+    /// a sphere's longitude costs two arcs per hit, wasted on an untextured
+    /// material.
+    pub shape_uv: DVec2,
     /// Vertex colour (glTF COLOR_0), multiplied into the surface colour;
     /// white without one.
     pub color: DVec3,

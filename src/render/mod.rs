@@ -24,6 +24,7 @@ use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::accel::PACKET;
+use crate::camera::FilmRays;
 use crate::math::Ray;
 use crate::math::permutation::permutation_element;
 use crate::math::rng::PixelRng;
@@ -243,6 +244,7 @@ pub fn render_row(
     let seed = frame_seed(settings.seed, settings.frame);
     let strata = Strata::new(settings.spp as usize);
     let spp = strata.len();
+    let film = scene.camera.film(settings.width, settings.height);
     let mut x0 = xs.start;
     while x0 < xs.end {
         let n = (xs.end - x0).min(PACKET as u32) as usize;
@@ -255,7 +257,7 @@ pub fn render_row(
         for s in 0..spp {
             for (k, (ray, rng)) in rays.iter_mut().zip(&mut rngs).enumerate().take(n) {
                 let x = x0 + k as u32;
-                *ray = camera_ray(scene, settings, &strata, s, x, y, lens_keys[k], rng).0;
+                *ray = camera_ray(&film, &strata, s, x, y, lens_keys[k], rng).0;
             }
             scene
                 .aggregate
@@ -330,7 +332,8 @@ pub fn render_pixel_recorded<R: Recorder>(
             Some(k) => (&scene.motion[k], tracer.for_scene(&scene.motion[k])),
             None => (scene, tracer.for_scene(scene)),
         };
-        let (ray, lens) = camera_ray(scene, settings, &strata, s, x, y, lens_key, &mut rng);
+        let film = scene.camera.film(settings.width, settings.height);
+        let (ray, lens) = camera_ray(&film, &strata, s, x, y, lens_key, &mut rng);
         let radiance = if recorded.is_none_or(|k| k == s) {
             let r = tracer.radiance_recorded(&ray, &mut rng, stats, recorder);
             (
@@ -404,10 +407,8 @@ fn instant_of(scene: &Scene, s: usize, spp: usize, key: u32, rng: &mut PixelRng)
 /// carried onto the lens by the concentric map (which keeps strata
 /// compact). Returns the ray and, with a lens, its point on the lens in
 /// world units along the camera's right and up from the lens centre.
-#[allow(clippy::too_many_arguments)]
 fn camera_ray(
-    scene: &Scene,
-    settings: &RenderSettings,
+    film: &FilmRays,
     strata: &Strata,
     s: usize,
     x: u32,
@@ -421,14 +422,13 @@ fn camera_ray(
         strata.point(s, rng)
     };
     let (x, y) = (f64::from(x) + offset.x, f64::from(y) + offset.y);
-    let camera = &scene.camera;
-    let Some(lens) = camera.lens else {
-        return (camera.ray(x, y, settings.width, settings.height), None);
+    let Some(lens) = film.camera().lens else {
+        return (film.ray(x, y), None);
     };
     let n = strata.len() as u32;
     let stratum = permutation_element(s as u32, n, lens_key) as usize;
     let disk = concentric_disk(strata.point(stratum, rng));
-    let ray = camera.ray_through_lens(x, y, settings.width, settings.height, disk);
+    let ray = film.ray_through_lens(x, y, disk);
     (ray, Some(lens.radius * disk))
 }
 

@@ -320,9 +320,10 @@ pub enum Texture {
 
 impl Texture {
     /// The colour at `point` on a surface with outward `normal` and
-    /// texture coordinates `uv`.
+    /// texture coordinates `uv` (asked for only by the textures that use
+    /// them).
     #[inline]
-    pub fn color(&self, point: DVec3, normal: DVec3, uv: DVec2) -> DVec3 {
+    pub fn color(&self, point: DVec3, normal: DVec3, uv: impl FnOnce() -> DVec2) -> DVec3 {
         match *self {
             Texture::Solid(c) => c,
             Texture::Checker { even, odd, size } => {
@@ -338,19 +339,19 @@ impl Texture {
                 }
             }
             Texture::UvChecker { even, odd, size } => {
-                let cell = (uv / size).floor();
+                let cell = (uv() / size).floor();
                 if (cell.x + cell.y).rem_euclid(2.0) == 0.0 {
                     even
                 } else {
                     odd
                 }
             }
-            Texture::Image { ref image, tint } => tint * image.lookup(uv),
+            Texture::Image { ref image, tint } => tint * image.lookup(uv()),
             Texture::Sampled {
                 ref image,
                 tint,
                 ref sampling,
-            } => tint * image.sample(uv, sampling),
+            } => tint * image.sample(uv(), sampling),
         }
     }
 }
@@ -492,21 +493,21 @@ mod tests {
         };
         let n = DVec3::Y;
         assert_eq!(
-            t.color(DVec3::new(1.0, 0.0, 1.0), n, DVec2::ZERO),
+            t.color(DVec3::new(1.0, 0.0, 1.0), n, || DVec2::ZERO),
             DVec3::ZERO
         );
         assert_eq!(
-            t.color(DVec3::new(3.0, 0.0, 1.0), n, DVec2::ZERO),
+            t.color(DVec3::new(3.0, 0.0, 1.0), n, || DVec2::ZERO),
             DVec3::ONE
         );
         assert_eq!(
-            t.color(DVec3::new(-1.0, 0.0, 1.0), n, DVec2::ZERO),
+            t.color(DVec3::new(-1.0, 0.0, 1.0), n, || DVec2::ZERO),
             DVec3::ONE
         );
         // Rounding noise around y = 0 does not change the cell.
         for dy in [-1e-15, 0.0, 1e-15] {
             assert_eq!(
-                t.color(DVec3::new(1.0, dy, 1.0), n, DVec2::ZERO),
+                t.color(DVec3::new(1.0, dy, 1.0), n, || DVec2::ZERO),
                 DVec3::ZERO
             );
         }

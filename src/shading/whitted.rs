@@ -339,6 +339,7 @@ impl<'a> Whitted<'a> {
         };
         let material_index = hit.material;
         let material = &self.scene.materials[material_index as usize];
+        let aggregate = &self.scene.aggregate;
         // Shading normal faces the incoming ray; "entering" by the sign of I·N.
         let entering = ray.direction.dot(hit.normal) < 0.0;
         let point = ShadingPoint {
@@ -352,13 +353,18 @@ impl<'a> Whitted<'a> {
             },
             view: -ray.direction,
             material,
-            od: material.texture.color(hit.point, hit.normal, hit.uv) * hit.color,
+            od: material
+                .texture
+                .color(hit.point, hit.normal, || aggregate.uv(&hit))
+                * hit.color,
         };
 
         rec.hit(&hit, entering, point.n, point.od);
         let mut color = material.ka * point.od * self.scene.ambient;
         rec.ambient(color);
-        let emitted = material.emission.color(hit.point, hit.normal, hit.uv);
+        let emitted = material
+            .emission
+            .color(hit.point, hit.normal, || aggregate.uv(&hit));
         rec.emission(emitted);
         color += emitted;
         for (index, light) in self.scene.lights.iter().enumerate() {
