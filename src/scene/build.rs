@@ -12,7 +12,7 @@ use toml::Spanned;
 use super::animation::{Animated, Animation, AnimationDesc, Interpolation, Lerp};
 use super::error::Diagnostics;
 use super::format::*;
-use super::models::{ModelCamera, ModelProjection, load_model};
+use super::models::{ModelCamera, ModelMotion, ModelProjection, Pose, load_model};
 use super::resources::{LoadOptions, Resources};
 use super::{Names, Scene};
 
@@ -63,6 +63,34 @@ struct LoadedModel {
     cameras: Vec<ModelCamera>,
 }
 
+/// Model files read by one build of a scene, for the builds of its
+/// shutter's instants: each file is read, and its meshes' trees built,
+/// once; an animated glTF is only posed again at each instant.
+#[derive(Clone, Default)]
+pub struct ModelCache(Arc<std::sync::Mutex<BTreeMap<PathBuf, Arc<ReadModel>>>>);
+
+/// A model file as read, before its materials join a scene.
+struct ReadModel {
+    meshes: Vec<Arc<Mesh>>,
+    /// Where its meshes, lights and cameras are at time 0.
+    pose: Pose,
+    materials: Vec<Material>,
+    warnings: Vec<String>,
+    motion: Option<Arc<ModelMotion>>,
+}
+
+impl ModelCache {
+    fn get(&self, key: &Path) -> Option<Arc<ReadModel>> {
+        let map = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        map.get(key).cloned()
+    }
+
+    fn insert(&self, key: PathBuf, model: Arc<ReadModel>) {
+        let mut map = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        map.insert(key, model);
+    }
+}
+
 /// A model's camera placed in the world, and what chose it.
 #[derive(Clone)]
 struct ChosenCamera {
@@ -97,6 +125,19 @@ pub fn check(
     check_at(file, base_dir, options, 0.0, diags)
 }
 
+/// [`check_at`] reading model files through `models` (those the scene's
+/// first build read: see [`Checked::models`]).
+pub fn check_with(
+    file: SceneFile,
+    base_dir: &Path,
+    options: &LoadOptions,
+    offset: f64,
+    models: &ModelCache,
+    diags: &mut Diagnostics,
+) -> Option<Checked> {
+    check_in(file, base_dir, options, offset, models.clone(), diags)
+}
+
 /// [`check`] with keyed values taken `offset` frames after the frame
 /// `options` names (an instant of an open shutter).
 pub fn check_at(
@@ -106,12 +147,32 @@ pub fn check_at(
     offset: f64,
     diags: &mut Diagnostics,
 ) -> Option<Checked> {
+    check_in(
+        file,
+        base_dir,
+        options,
+        offset,
+        ModelCache::default(),
+        diags,
+    )
+}
+
+fn check_in(
+    file: SceneFile,
+    base_dir: &Path,
+    options: &LoadOptions,
+    offset: f64,
+    cache: ModelCache,
+    diags: &mut Diagnostics,
+) -> Option<Checked> {
     let mut c = Check {
         diags,
         base_dir: base_dir.to_path_buf(),
         resources: Resources::new(base_dir, options),
         materials: Vec::new(),
         models: BTreeMap::new(),
+        cache,
+        fps: 24.0,
         model_lights: Vec::new(),
         model_camera: None,
         camera_request: options.camera.clone(),
@@ -127,6 +188,9 @@ pub fn check_at(
         keyed: false,
     };
     let animation = file.animation.as_ref().and_then(|a| c.animation(a));
+    if let Some(a) = &animation {
+        c.fps = a.fps;
+    }
     if let Some(desc) = &file.animation
         && let Some(i) = &desc.get_ref().interpolation
     {
@@ -285,6 +349,7 @@ pub fn check_at(
     }
     let camera = camera?;
     Some(Checked {
+        models: c.cache,
         shutter_at: file.render.shutter.as_ref().map(|s| s.span().start),
         primitives,
         scene: Scene {
@@ -326,6 +391,8 @@ pub struct Checked {
     scene: Scene,
     /// Where the `shutter` key starts in the source, if it is there.
     shutter_at: Option<usize>,
+    /// The model files it read.
+    models: ModelCache,
 }
 
 impl Checked {
@@ -333,6 +400,12 @@ impl Checked {
     /// instants are built too.
     pub fn shutter_open(&self) -> bool {
         self.scene.settings.shutter.is_some() && self.scene.animated
+    }
+
+    /// The model files this build read, for [`check_with`] to build the
+    /// shutter's instants without reading them again.
+    pub fn models(&self) -> ModelCache {
+        self.models.clone()
     }
 
     /// The byte offset of the `shutter` key in the source (0 without one):
@@ -366,6 +439,10 @@ struct Check<'d, 's> {
     materials: Vec<Material>,
     /// Models loaded so far, by path: placing a model again shares its mesh.
     models: BTreeMap<PathBuf, LoadedModel>,
+    /// Model files as read, shared with the builds of other instants.
+    cache: ModelCache,
+    /// `[animation] fps`: a glTF's animation time is frame / fps seconds.
+    fps: f64,
     /// Lights that models brought, placed in the world.
     model_lights: Vec<Light>,
     /// The first camera a model brought (or the one an object named),
@@ -1711,29 +1788,33 @@ impl Check<'_, '_> {
         if let Some(found) = self.models.get(&key) {
             return Some(found.clone());
         }
-        let model = match load_model(&path, &mut self.resources) {
-            Ok(m) => m,
-            Err(e) => {
-                self.model_failed = true;
-                self.error(file.span(), format!("{label}: {e}"));
-                return None;
+        let read = match self.cache.get(&key) {
+            Some(read) => read,
+            None => {
+                let read = Arc::new(self.read_model(&path, file, label)?);
+                self.cache.insert(key.clone(), read.clone());
+                read
             }
         };
-        let mut meshes = Vec::with_capacity(model.meshes.len());
-        for data in model.meshes {
-            match Mesh::new(data) {
-                Ok(m) => meshes.push(Arc::new(m)),
-                Err(e) => {
-                    // The model failed as surely as when it could not be
-                    // read: it may have brought the camera.
-                    self.model_failed = true;
-                    self.error(file.span(), format!("{label}: {}: {e}", path.display()));
-                    return None;
-                }
+        let posed;
+        let pose = match &read.motion {
+            None => &read.pose,
+            Some(motion) => {
+                // Prism's frame F is the glTF's time F / fps.
+                self.keyed = true;
+                posed = match motion.pose(self.frame / self.fps) {
+                    Ok(p) => p,
+                    Err(e) => {
+                        self.model_failed = true;
+                        self.error(file.span(), format!("{label}: {e}"));
+                        return None;
+                    }
+                };
+                &posed
             }
-        }
-        let mut placements = Vec::with_capacity(model.placements.len());
-        for &(mesh, m) in &model.placements {
+        };
+        let mut placements = Vec::with_capacity(pose.placements.len());
+        for &(mesh, m) in &pose.placements {
             let affine = DAffine3::from_mat4(m);
             if affine == DAffine3::IDENTITY {
                 placements.push((mesh, None));
@@ -1754,7 +1835,7 @@ impl Check<'_, '_> {
             };
             placements.push((mesh, Some(t)));
         }
-        let slots: Arc<[u32]> = if model.materials.is_empty() {
+        let slots: Arc<[u32]> = if read.materials.is_empty() {
             let default = *self.default_material.get_or_insert_with(|| {
                 self.materials.push(Material::default());
                 self.materials.len() as u32 - 1
@@ -1762,19 +1843,60 @@ impl Check<'_, '_> {
             Arc::new([default])
         } else {
             let first = self.materials.len() as u32;
-            self.materials.extend(model.materials);
+            self.materials.extend(read.materials.iter().cloned());
             (first..self.materials.len() as u32).collect()
         };
-        self.warnings.extend(model.warnings);
+        self.warnings.extend(read.warnings.iter().cloned());
         let loaded = LoadedModel {
-            meshes,
+            meshes: read.meshes.clone(),
             placements,
             slots,
-            lights: model.lights,
-            cameras: model.cameras,
+            lights: pose.lights.clone(),
+            cameras: pose.cameras.clone(),
         };
         self.models.insert(key, loaded.clone());
         Some(loaded)
+    }
+
+    /// Reads the model file at `path` and builds its meshes' trees.
+    fn read_model(
+        &mut self,
+        path: &Path,
+        file: &Spanned<String>,
+        label: &str,
+    ) -> Option<ReadModel> {
+        let model = match load_model(path, &mut self.resources) {
+            Ok(m) => m,
+            Err(e) => {
+                self.model_failed = true;
+                self.error(file.span(), format!("{label}: {e}"));
+                return None;
+            }
+        };
+        let mut meshes = Vec::with_capacity(model.meshes.len());
+        for data in model.meshes {
+            match Mesh::new(data) {
+                Ok(m) => meshes.push(Arc::new(m)),
+                Err(e) => {
+                    // The model failed as surely as when it could not be
+                    // read: it may have brought the camera.
+                    self.model_failed = true;
+                    self.error(file.span(), format!("{label}: {}: {e}", path.display()));
+                    return None;
+                }
+            }
+        }
+        Some(ReadModel {
+            meshes,
+            pose: Pose {
+                placements: model.placements,
+                lights: model.lights,
+                cameras: model.cameras,
+            },
+            materials: model.materials,
+            warnings: model.warnings,
+            motion: model.motion,
+        })
     }
 
     /// Puts the lights (times `light_scale`) and cameras a model brought

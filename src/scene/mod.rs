@@ -229,8 +229,9 @@ impl Scene {
     ) -> Result<Scene, SceneError> {
         let checked = check(source, origin, base_dir, options)?;
         let at = error::line_column(source, checked.shutter_at());
+        let models = checked.models();
         checked.finish().with_motion(origin, at, |offset| {
-            check_at(source, origin, base_dir, options, offset).map(build::Checked::finish)
+            check_at(source, origin, base_dir, options, offset, &models).map(build::Checked::finish)
         })
     }
 
@@ -343,8 +344,10 @@ impl Scene {
                     return Ok(checked.finish());
                 }
                 let at = error::line_column(&source, checked.shutter_at());
+                // The instants read no model file again.
+                let models = checked.models();
                 checked.finish().with_motion(&origin, at, |offset| {
-                    check_at(&source, &origin, base_dir, options, offset)
+                    check_at(&source, &origin, base_dir, options, offset, &models)
                         .map(build::Checked::finish)
                 })
             }
@@ -442,20 +445,29 @@ fn check(
     base_dir: &Path,
     options: &LoadOptions,
 ) -> Result<build::Checked, SceneError> {
-    check_at(source, origin, base_dir, options, 0.0)
+    check_at(
+        source,
+        origin,
+        base_dir,
+        options,
+        0.0,
+        &build::ModelCache::default(),
+    )
 }
 
-/// [`check`] with keyed values `offset` frames after the frame asked for.
+/// [`check`] with keyed values `offset` frames after the frame asked for,
+/// model files read through `models`.
 fn check_at(
     source: &str,
     origin: &str,
     base_dir: &Path,
     options: &LoadOptions,
     offset: f64,
+    models: &build::ModelCache,
 ) -> Result<build::Checked, SceneError> {
     let mut diags = error::Diagnostics::new(source);
     let checked = load::parse(source, &mut diags)
-        .and_then(|file| build::check_at(file, base_dir, options, offset, &mut diags));
+        .and_then(|file| build::check_with(file, base_dir, options, offset, models, &mut diags));
     match checked {
         Some(mut checked) if diags.is_empty() => {
             let inventory = checked.inventory_mut();

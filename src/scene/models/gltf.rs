@@ -23,13 +23,14 @@ use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
 
-use glam::{DMat3, DMat4, DQuat, DVec2, DVec3};
+use glam::{DMat3, DMat4, DQuat, DVec2, DVec3, DVec4};
 use gltf::json::accessor::{ComponentType, GenericComponentType, Type};
 use gltf::json::mesh::{Mode, Semantic};
 use gltf::json::validation::Checked;
 use gltf::json::{self, Index, Root};
 
-use super::{Model, ModelCamera, ModelError, ModelProjection};
+use super::keyframes::{Interpolation, Sampler};
+use super::{Model, ModelCamera, ModelError, ModelProjection, Pose};
 use crate::geometry::MeshData;
 use crate::lights::{Light, LightShape, SpotCone};
 use crate::limits::{MAX_MODEL_PLACEMENTS, MAX_VALUE};
@@ -142,72 +143,43 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
         )));
     }
 
-    let mut model = Model {
-        meshes: Vec::new(),
-        placements: Vec::new(),
-        materials: Vec::new(),
-        warnings: Vec::new(),
-        lights: Vec::new(),
-        cameras: Vec::new(),
-    };
-    // glTF mesh index → index into model.meshes (`None`: no triangles): a
+    let animations = reader.animations().map_err(err)?;
+    let mut meshes = Vec::new();
+    // glTF mesh index → index into `meshes` (`None`: no triangles): a
     // mesh used by several nodes (or by a node placed many times) is read
     // and stored once.
     let mut mesh_slots: HashMap<usize, Option<usize>> = HashMap::new();
-    // Depth first in node order (children pushed in reverse), so "the
-    // first camera" is the first one met reading the scene's nodes in
-    // order, as Blender lists them.
-    let mut stack: Vec<(usize, DMat4)> =
-        roots.iter().rev().map(|&n| (n, DMat4::IDENTITY)).collect();
-    let mut any_mesh = false;
-    while let Some((n, parent)) = stack.pop() {
-        let node = &root.nodes[n];
-        let world = parent * local_transform(node);
-        if !world.is_finite() {
-            return Err(err(format!(
-                "nodes[{n}]: its world transform overflows (not finite)"
-            )));
-        }
-        stack.extend(graph.children[n].iter().rev().map(|&c| (c, world)));
-        if let Some(c) = node.camera
-            && let Some(camera) = reader.camera(n, c.value(), &world).map_err(err)?
-        {
-            model.cameras.push(camera);
-        }
-        if let Some(light) = node
-            .extensions
-            .as_ref()
-            .and_then(|e| e.khr_lights_punctual.as_ref())
-        {
-            let l = reader.light(n, light.light.value(), &world).map_err(err)?;
-            model.lights.push(l);
-        }
-        let Some(mesh) = node.mesh else { continue };
-        any_mesh = true;
-        if DMat3::from_mat4(world).determinant().abs() < 1e-12 {
-            return Err(err(format!(
-                "nodes[{n}]: its world transform is singular (a zero scale)"
-            )));
-        }
-        let index = match mesh_slots.get(&mesh.value()) {
-            Some(&i) => i,
-            None => {
-                let data = reader
-                    .mesh(mesh.value(), n, default_slot, &mut needs_default)
-                    .map_err(err)?;
-                // Only lines or points: skipped (already warned about).
-                let slot = (!data.triangles.is_empty()).then(|| {
-                    model.meshes.push(data);
-                    model.meshes.len() - 1
-                });
-                mesh_slots.insert(mesh.value(), slot);
-                slot
+    let pose = walk(
+        &mut reader,
+        &roots,
+        &graph.children,
+        &animations,
+        0.0,
+        |reader, n, mesh| {
+            if let Some(&slot) = mesh_slots.get(&mesh) {
+                return Ok(slot);
             }
-        };
-        if let Some(index) = index {
-            model.placements.push((index, world));
-        }
-    }
+            let data = reader.mesh(mesh, n, default_slot, &mut needs_default)?;
+            // Only lines or points: skipped (already warned about).
+            let slot = (!data.triangles.is_empty()).then(|| {
+                meshes.push(data);
+                meshes.len() - 1
+            });
+            mesh_slots.insert(mesh, slot);
+            Ok(slot)
+        },
+    )
+    .map_err(err)?;
+    let mut model = Model {
+        meshes,
+        placements: pose.placements,
+        materials: Vec::new(),
+        warnings: Vec::new(),
+        lights: pose.lights,
+        cameras: pose.cameras,
+        motion: None,
+    };
+    let any_mesh = !mesh_slots.is_empty();
     if any_mesh && model.meshes.is_empty() {
         return Err(err(
             "has no triangles: every primitive of its meshes is lines or points, which Prism \
@@ -224,13 +196,8 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
             reader.ignore(&format!("the extension {}", short(ext)), "extensionsUsed");
         }
     }
-    for (present, feature) in [
-        (!root.animations.is_empty(), "animations"),
-        (!root.skins.is_empty(), "skins"),
-    ] {
-        if present {
-            reader.ignore(feature, "");
-        }
+    if !root.skins.is_empty() {
+        reader.ignore("skins", "");
     }
     if !reader.ignored.is_empty() {
         let list: Vec<String> = reader
@@ -256,7 +223,164 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
         ));
     }
     model.warnings = reader.warnings;
+    if !animations.is_empty() {
+        model.motion = Some(Arc::new(Motion {
+            file: path.to_path_buf(),
+            root,
+            roots,
+            children: graph.children,
+            animations,
+            mesh_slots,
+        }));
+    }
     Ok(model)
+}
+
+/// A glTF file whose nodes are animated: what it takes to place its
+/// meshes, lights and cameras again at another time (the node graph and
+/// the channels; the meshes are read once, at load).
+pub struct Motion {
+    file: std::path::PathBuf,
+    root: Root,
+    roots: Vec<usize>,
+    children: Vec<Vec<usize>>,
+    animations: HashMap<usize, NodeAnimation>,
+    /// glTF mesh index → index into the model's meshes.
+    mesh_slots: HashMap<usize, Option<usize>>,
+}
+
+impl std::fmt::Debug for Motion {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Motion")
+            .field("file", &self.file)
+            .field("animated_nodes", &self.animations.len())
+            .finish()
+    }
+}
+
+impl Motion {
+    /// The model's placements, lights and cameras at `seconds` of its
+    /// animations (glTF time).
+    pub fn pose(&self, seconds: f64) -> Result<Pose, ModelError> {
+        let mut reader = Reader {
+            root: &self.root,
+            buffers: &[],
+            file: &self.file,
+            warnings: Vec::new(),
+            ignored: Default::default(),
+        };
+        walk(
+            &mut reader,
+            &self.roots,
+            &self.children,
+            &self.animations,
+            seconds,
+            |_, _, mesh| Ok(self.mesh_slots.get(&mesh).copied().flatten()),
+        )
+        .map_err(|e| ModelError::new(&self.file, None, e))
+    }
+}
+
+/// The scene's node instances at `seconds`: each node's world transform
+/// (its animated channels played at that time), its camera and light
+/// placed, and its mesh's slot (`mesh_slot(reader, node, mesh)`) placed.
+/// Depth first in node order (children pushed in reverse), so "the first
+/// camera" is the first one met reading the scene's nodes in order, as
+/// Blender lists them.
+fn walk<'a>(
+    reader: &mut Reader<'a>,
+    roots: &[usize],
+    children: &[Vec<usize>],
+    animations: &HashMap<usize, NodeAnimation>,
+    seconds: f64,
+    mut mesh_slot: impl FnMut(&mut Reader<'a>, usize, usize) -> Result<Option<usize>, String>,
+) -> Result<Pose, String> {
+    let root = reader.root;
+    let when = if animations.is_empty() {
+        String::new()
+    } else {
+        format!(" at {seconds} s of its animation")
+    };
+    let mut pose = Pose::default();
+    let mut stack: Vec<(usize, DMat4)> =
+        roots.iter().rev().map(|&n| (n, DMat4::IDENTITY)).collect();
+    while let Some((n, parent)) = stack.pop() {
+        let node = &root.nodes[n];
+        let local = match animations.get(&n) {
+            Some(a) => a.local_at(node, seconds),
+            None => local_transform(node),
+        };
+        let world = parent * local;
+        if !world.is_finite() {
+            return Err(format!(
+                "nodes[{n}]: its world transform{when} overflows (not finite)"
+            ));
+        }
+        stack.extend(children[n].iter().rev().map(|&c| (c, world)));
+        if let Some(c) = node.camera
+            && let Some(camera) = reader.camera(n, c.value(), &world)?
+        {
+            pose.cameras.push(camera);
+        }
+        if let Some(light) = node
+            .extensions
+            .as_ref()
+            .and_then(|e| e.khr_lights_punctual.as_ref())
+        {
+            pose.lights
+                .push(reader.light(n, light.light.value(), &world)?);
+        }
+        let Some(mesh) = node.mesh else { continue };
+        if DMat3::from_mat4(world).determinant().abs() < 1e-12 {
+            return Err(format!(
+                "nodes[{n}]: its world transform{when} is singular (a zero scale)"
+            ));
+        }
+        if let Some(index) = mesh_slot(reader, n, mesh.value())? {
+            pose.placements.push((index, world));
+        }
+    }
+    Ok(pose)
+}
+
+/// The channels that drive one node: each of its translation, rotation
+/// and scale, if animated.
+#[derive(Debug, Default)]
+struct NodeAnimation {
+    /// Translation, rotation, scale.
+    channels: [Option<Sampler>; 3],
+}
+
+impl NodeAnimation {
+    /// The node's local matrix at `seconds`: its animated properties
+    /// played, the others as the node states them.
+    fn local_at(&self, node: &json::Node, seconds: f64) -> DMat4 {
+        let [t, r, s] = &self.channels;
+        let t = t.as_ref().map_or_else(
+            || DVec3::from_array(node.translation.unwrap_or([0.0; 3]).map(f64::from)),
+            |t| t.at(seconds).truncate(),
+        );
+        let q = r.as_ref().map_or_else(
+            || {
+                DQuat::from_array(
+                    node.rotation
+                        .map_or([0.0, 0.0, 0.0, 1.0], |q| q.0)
+                        .map(f64::from),
+                )
+            },
+            |r| DQuat::from_vec4(r.at(seconds)),
+        );
+        let q = if q.length_squared() > 0.0 && q.is_finite() {
+            q.normalize()
+        } else {
+            DQuat::from_array([f64::NAN; 4])
+        };
+        let s = s.as_ref().map_or_else(
+            || DVec3::from_array(node.scale.unwrap_or([1.0; 3]).map(f64::from)),
+            |s| s.at(seconds).truncate(),
+        );
+        DMat4::from_scale_rotation_translation(s, q, t)
+    }
 }
 
 /// The JSON and BIN chunks of a GLB container, every length checked against
@@ -648,6 +772,24 @@ const COLOR3: Expect = Expect {
 const COLOR4: Expect = Expect {
     kind: Type::Vec4,
     components: COLOR_COMPONENTS,
+};
+/// An animation sampler's key times.
+const TIMES: Expect = Expect {
+    kind: Type::Scalar,
+    components: &[(ComponentType::F32, false)],
+};
+/// Keyed translations and scales.
+const VECTORS: Expect = POSITION;
+/// Keyed rotations: float or normalized integer quaternions.
+const ROTATIONS: Expect = Expect {
+    kind: Type::Vec4,
+    components: &[
+        (ComponentType::F32, false),
+        (ComponentType::I8, true),
+        (ComponentType::U8, true),
+        (ComponentType::I16, true),
+        (ComponentType::U16, true),
+    ],
 };
 const INDICES: Expect = Expect {
     kind: Type::Scalar,
@@ -1131,6 +1273,78 @@ impl<'a> Reader<'a> {
         if !places.iter().any(|p| p == at) {
             places.push(at.to_string());
         }
+    }
+
+    /// The channels of every animation that drive a node's translation,
+    /// rotation or scale, by node, each sampler read and checked (times
+    /// finite and increasing, as many values as its interpolation needs,
+    /// every value finite); morph target weights and channels of unknown
+    /// paths are noted as ignored, and so is a second channel on a
+    /// property another already drives (the first in file order plays).
+    fn animations(&mut self) -> Result<HashMap<usize, NodeAnimation>, String> {
+        use json::animation::{Interpolation as Json, Property};
+        let root = self.root;
+        let mut out: HashMap<usize, NodeAnimation> = HashMap::new();
+        for (a, animation) in root.animations.iter().enumerate() {
+            for (c, channel) in animation.channels.iter().enumerate() {
+                let at = format!("animations[{a}].channels[{c}]");
+                let (slot, rotation) = match channel.target.path {
+                    Checked::Valid(Property::Translation) => (0, false),
+                    Checked::Valid(Property::Rotation) => (1, true),
+                    Checked::Valid(Property::Scale) => (2, false),
+                    Checked::Valid(Property::MorphTargetWeights) => {
+                        self.ignore("morph target weight animations", &at);
+                        continue;
+                    }
+                    Checked::Invalid => {
+                        self.ignore("animation channels of unknown paths", &at);
+                        continue;
+                    }
+                };
+                let n = channel.target.node.value();
+                let node = lookup(&root.nodes, n, &format!("{at}.target.node"), "node")?;
+                if node.matrix.is_some() {
+                    return Err(format!(
+                        "{at}.target.node: nodes[{n}] has a `matrix`, which animations cannot                          drive (the glTF specification animates translation, rotation and scale                          only)"
+                    ));
+                }
+                let s = channel.sampler.value();
+                let sampler = lookup(&animation.samplers, s, &format!("{at}.sampler"), "sampler")?;
+                let sat = format!("animations[{a}].samplers[{s}]");
+                let interpolation = match sampler.interpolation {
+                    Checked::Valid(Json::Linear) => Interpolation::Linear,
+                    Checked::Valid(Json::Step) => Interpolation::Step,
+                    Checked::Valid(Json::CubicSpline) => Interpolation::CubicSpline,
+                    Checked::Invalid => {
+                        return Err(format!(
+                            "{sat}.interpolation: unknown; expected LINEAR, STEP or CUBICSPLINE"
+                        ));
+                    }
+                };
+                let input = self.elements(sampler.input, &format!("{sat}.input"), &TIMES)?;
+                let times = (0..input.count).map(|i| input.get(i, 0)).collect();
+                let expect = if rotation { &ROTATIONS } else { &VECTORS };
+                let output = self.elements(sampler.output, &format!("{sat}.output"), expect)?;
+                let values = (0..output.count)
+                    .map(|i| {
+                        let w = if rotation { output.get(i, 3) } else { 0.0 };
+                        DVec4::new(output.get(i, 0), output.get(i, 1), output.get(i, 2), w)
+                    })
+                    .collect();
+                let sampler = Sampler::new(times, values, interpolation, rotation)
+                    .map_err(|e| format!("{sat}.{e}"))?;
+                let channels = &mut out.entry(n).or_default().channels;
+                if channels[slot].is_some() {
+                    self.ignore(
+                        "animation channels on a property another channel already drives",
+                        &at,
+                    );
+                } else {
+                    channels[slot] = Some(sampler);
+                }
+            }
+        }
+        Ok(out)
     }
 
     /// The texture `info` refers to, times `tint`, read through its

@@ -3,11 +3,13 @@
 //! them, the line or element.
 
 mod gltf;
+pub mod keyframes;
 mod obj;
 mod ply;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use glam::{DMat4, DVec3};
 
@@ -32,6 +34,24 @@ pub struct Model {
     /// Lights the file brings (glTF), in model space.
     pub lights: Vec<Light>,
     /// The file's cameras (glTF), in model space, in node order.
+    pub cameras: Vec<ModelCamera>,
+    /// The file's node animations (glTF), if any channel moves a node:
+    /// placements, lights and cameras at another time. The fields above
+    /// are its pose at time 0.
+    pub motion: Option<Arc<ModelMotion>>,
+}
+
+pub use gltf::Motion as ModelMotion;
+
+/// Where a model's meshes, lights and cameras are at one time (see
+/// [`ModelMotion::pose`]); the fields mean what [`Model`]'s do.
+#[derive(Debug, Default)]
+pub struct Pose {
+    /// (index into the model's meshes, mesh to model space).
+    pub placements: Vec<(usize, DMat4)>,
+    /// Lights in model space.
+    pub lights: Vec<Light>,
+    /// Cameras in model space, in node order.
     pub cameras: Vec<ModelCamera>,
 }
 
@@ -137,6 +157,7 @@ impl Model {
             warnings,
             lights: Vec::new(),
             cameras: Vec::new(),
+            motion: None,
         }
     }
 }
