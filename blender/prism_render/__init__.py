@@ -21,7 +21,7 @@ import threading
 
 import bpy
 
-from . import materials, runner, scene_file, tiles
+from . import materials, motion as object_motion, runner, scene_file, tiles
 from .render_levels import render_levels
 from .text import escape_controls, report_lines
 
@@ -136,8 +136,13 @@ class PrismRenderEngine(bpy.types.RenderEngine):
                 scene_file.drop_gltf_spots(glb)
             # Checker textures the exporter drops, and what else it drops.
             material_notes = materials.carry(glb, depsgraph)
+            # Objects moving during the shutter: a glTF animation in the .glb.
+            motion_notes = []
+            if motion is not None and motion["times"][1] > motion["times"][0]:
+                motion["carried"], motion_notes = object_motion.carry(
+                    glb, motion, scene_file.fps(scene.render))
             text, notes = scene_file.scene_toml(depsgraph, "scene.glb", scene.prism, motion)
-            notes += material_notes
+            notes += motion_notes + material_notes
         except (OSError, ValueError) as e:
             return self._fail(str(e))
         for note in notes:
@@ -229,13 +234,22 @@ def export_on_main_thread(engine, scene, path, view_layer, lights=True):
     return outcome.get("motion")
 
 
+# Instants the shutter's motion is keyed at (open, between, close): enough
+# for rotations and curved paths to follow; Prism interpolates between them.
+SHUTTER_KEYS = 5
+
+
 def shutter_poses(scene):
-    """With motion blur on, the scene at the shutter's opening and closing
-    (Blender's motion_blur_position: the frame starts, centres or ends the
-    exposure of motion_blur_shutter frames): the active camera's world
-    matrix at each, and the names of the other objects whose world matrix
-    differs between them. None without motion blur. The scene is put back
-    at its frame. Main thread only (frame_set evaluates the scene)."""
+    """With motion blur on, the scene at SHUTTER_KEYS instants across the
+    shutter (Blender's motion_blur_position: the frame starts, centres or
+    ends the exposure of motion_blur_shutter frames), as frame offsets from
+    this frame: the active camera's world matrix at each, the other
+    objects' at each and at this frame (what the export holds), the names
+    of those whose world matrix differs across the shutter ("moving"), and
+    of the meshes whose evaluated geometry changes ("deforming": armatures,
+    shape keys, modifiers; their deformation is not carried). None without
+    motion blur. The scene is put back at its frame. Main thread only
+    (frame_set evaluates the scene)."""
     render = scene.render
     if not render.use_motion_blur or scene.camera is None:
         return None
@@ -244,20 +258,52 @@ def shutter_poses(scene):
     position = getattr(render, "motion_blur_position", None) \
         or getattr(getattr(scene, "cycles", None), "motion_blur_position", "CENTER")
     start = {"START": 0.0, "END": -length}.get(position, -0.5 * length)
+    instants = [start + length * k / (SHUTTER_KEYS - 1) for k in range(SHUTTER_KEYS)]
     frame, subframe = scene.frame_current, scene.frame_subframe
-    poses = []
+    # Evaluated first: an object render_levels has just shown (hidden in
+    # viewports) has no world matrix of this frame until then.
+    scene.frame_set(frame, subframe=subframe)
+    # What the export holds (objects F12 does not render are not there).
+    others = [o for o in scene.objects if o != scene.camera and not o.hide_render
+              and o.type not in ("SPEAKER", "LIGHT_PROBE")]
+    objects = {o.name: {"kind": o.type, "now": o.matrix_world.copy(), "at": []} for o in others}
+    # Meshes that could deform: a modifier or shape keys (geometry is
+    # compared at the shutter's ends for these only).
+    may_deform = [o for o in others if o.type == "MESH"
+                  and (len(o.modifiers) or getattr(o.data, "shape_keys", None))]
+    shapes = {}
+    cameras = []
     try:
-        for t in (start, start + length):
+        for k, t in enumerate(instants):
             whole = math.floor(frame + t)
             scene.frame_set(int(whole), subframe=frame + t - whole)
-            poses.append((scene.camera.matrix_world.copy(),
-                          {o.name: o.matrix_world.copy() for o in scene.objects if o != scene.camera}))
+            cameras.append(scene.camera.matrix_world.copy())
+            for o in others:
+                objects[o.name]["at"].append(o.matrix_world.copy())
+            if k in (0, len(instants) - 1) and may_deform:
+                depsgraph = bpy.context.evaluated_depsgraph_get()
+                for o in may_deform:
+                    shapes.setdefault(o.name, []).append(_geometry(o, depsgraph))
     finally:
         scene.frame_set(frame, subframe=subframe)
-    (camera0, others0), (camera1, others1) = poses
-    moving = sorted(name for name, m in others0.items()
-                    if name in others1 and not _same_matrix(m, others1[name]))
-    return {"times": (start, start + length), "camera": (camera0, camera1), "moving": moving}
+    moving = sorted(name for name, o in objects.items()
+                    if not all(_same_matrix(o["at"][0], m) for m in o["at"][1:]))
+    deforming = sorted(name for name, (a, b) in shapes.items() if a != b)
+    return {"times": (start, start + length), "instants": instants, "camera": cameras,
+            "objects": objects, "moving": moving, "deforming": deforming}
+
+
+def _geometry(obj, depsgraph):
+    """The evaluated mesh's vertex coordinates in its own space, rounded
+    (a deformation, not rounding, should tell two apart)."""
+    evaluated = obj.evaluated_get(depsgraph)
+    mesh = evaluated.to_mesh()
+    try:
+        coords = [0.0] * (3 * len(mesh.vertices))
+        mesh.vertices.foreach_get("co", coords)
+        return tuple(round(c, 5) for c in coords)
+    finally:
+        evaluated.to_mesh_clear()
 
 
 def _same_matrix(a, b):

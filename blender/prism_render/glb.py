@@ -65,6 +65,32 @@ def append_image(doc, binary, png, name):
     return len(images) - 1, binary
 
 
+def append_floats(doc, binary, values, kind, min_max=False):
+    """Adds float elements (tuples of 1, 3 or 4 numbers: kind SCALAR, VEC3
+    or VEC4) to the BIN chunk as an accessor through a buffer view, with
+    their min and max where `min_max` (an animation's times need them);
+    returns (the new BIN bytes, the accessor's index)."""
+    start = len(binary) + (-len(binary) % 4)
+    flat = [float(c) for v in values for c in v]
+    data = struct.pack(f"<{len(flat)}f", *flat)
+    binary = binary + b"\0" * (start - len(binary)) + data
+    if not doc.get("buffers"):
+        doc["buffers"] = [{"byteLength": 0}]
+    views = doc.setdefault("bufferViews", [])
+    views.append({"buffer": 0, "byteOffset": start, "byteLength": len(data)})
+    accessor = {"bufferView": len(views) - 1, "componentType": 5126, "count": len(values),
+                "type": kind}
+    if min_max:
+        # The values as float32 rounds them, so the bounds hold what is stored.
+        stored = struct.unpack(f"<{len(flat)}f", data)
+        width = len(values[0])
+        accessor["min"] = [min(stored[c::width]) for c in range(width)]
+        accessor["max"] = [max(stored[c::width]) for c in range(width)]
+    accessors = doc.setdefault("accessors", [])
+    accessors.append(accessor)
+    return binary, len(accessors) - 1
+
+
 def png_rgb8(width, height, rows):
     """A PNG of 8-bit RGB rows (each a list of (r, g, b) bytes), top row first."""
     raw = b"".join(b"\0" + bytes(c for px in row for c in px) for row in rows)

@@ -115,8 +115,8 @@ def camera_table(cam_obj, width, height, pixel_aspect, motion=None):
     """`[camera]` for Blender's active camera: position, look_at, up and the
     field of view along the axis Blender fits the sensor to; with
     `motion` (the shutter's camera poses, times in frames from this
-    frame) each keyed at the shutter's opening (Prism's frame 0) and
-    closing. Returns the lines and a list of notes for what Prism cannot show."""
+    frame) each keyed at the shutter's instants, the opening as Prism's
+    frame 0. Returns the lines and a list of notes for what Prism cannot show."""
     notes = []
     cam = cam_obj.data
     # The sensor fits the wider side of the (pixel-aspect-corrected) frame
@@ -146,8 +146,8 @@ def camera_table(cam_obj, width, height, pixel_aspect, motion=None):
     if motion is None:
         views = [(0.0, _view(cam_obj.matrix_world))]
     else:
-        t0, t1 = motion["times"]
-        views = [(0.0, _view(motion["camera"][0])), (t1 - t0, _view(motion["camera"][1]))]
+        t0 = motion["times"][0]
+        views = [(t - t0, _view(m)) for t, m in zip(motion["instants"], motion["camera"])]
     for i, key in enumerate(("position", "look_at", "up")):
         if len(views) == 1:
             lines.append(f"{key} = {toml_vector(views[0][1][i])}")
@@ -351,6 +351,11 @@ def area_light_table(label, name, light, m):
     return lines, notes
 
 
+def fps(render):
+    """Blender's frames per second (render.fps / render.fps_base)."""
+    return render.fps / render.fps_base
+
+
 def scene_toml(depsgraph, glb_name, settings, motion=None):
     """The whole scene file; `settings` is the scene's PrismSettings;
     `motion` the shutter's poses with motion blur on (the add-on's
@@ -383,24 +388,30 @@ def scene_toml(depsgraph, glb_name, settings, motion=None):
     elif scene.view_settings.exposure != 0.0:
         notes.append("Prism's scene file has no exposure yet; Blender applies its exposure to the render it shows")
     camera_motion = None
+    animation = []
     if render.use_motion_blur and motion is not None:
-        # The camera's motion is Prism's shutter over keyed camera values
-        # (frame 0 the opening); objects inside the .glb cannot be keyed.
+        # The camera's motion is Prism's shutter over keyed camera values,
+        # the objects' a glTF animation in the .glb (motion.py), both with
+        # the shutter's opening as Prism's frame 0 and Blender's fps.
         t0, t1 = motion["times"]
-        if t1 > t0 and not all(_same(a, b) for a, b in zip(*(_view(m) for m in motion["camera"]))):
+        views = [_view(m) for m in motion["camera"]]
+        if t1 > t0 and not all(_same(a, b) for v in views[1:] for a, b in zip(views[0], v)):
             camera_motion = motion
+        if t1 > t0 and (camera_motion or motion.get("carried")):
             lines.append(f"shutter = [0, {toml_number(t1 - t0)}]")
-        if motion["moving"]:
-            names = ", ".join(f"'{n}'" for n in motion["moving"][:8])
-            more = f" and {len(motion['moving']) - 8} more" if len(motion["moving"]) > 8 else ""
-            notes.append("motion blur: the scene file holds the glTF export of one instant "
-                         f"(frame {scene.frame_current}) and Prism cannot key the motion of objects "
-                         f"inside it; rendered sharp: {names}{more}"
-                         + (" (the camera's motion is carried)" if camera_motion else ""))
+            animation = ["[animation]", "frames = 1", f"fps = {toml_number(fps(render))}", ""]
+        if motion.get("deforming"):
+            names = ", ".join(f"'{n}'" for n in motion["deforming"][:8])
+            more = f" and {len(motion['deforming']) - 8} more" if len(motion["deforming"]) > 8 else ""
+            notes.append("motion blur: objects whose shape changes while the shutter is open "
+                         "(armatures, shape keys, animated modifiers) keep the shape of frame "
+                         f"{scene.frame_current}; only their movement as a whole is blurred: "
+                         f"{names}{more}")
     elif render.use_motion_blur:
         notes.append("motion blur is not carried: the scene file holds the glTF export of one "
                      f"instant (frame {scene.frame_current}); rendered sharp")
     lines.append("")
+    lines += animation
     cam_lines, cam_notes = camera_table(
         scene.camera, width, height, (render.pixel_aspect_x, render.pixel_aspect_y), camera_motion)
     lines += cam_lines + [""]

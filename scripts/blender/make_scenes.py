@@ -16,6 +16,8 @@
     world, no lights: glossy reflection against Cycles' at its centre;
   motion_camera: a checker plane seen from above by a camera moving
     along x, motion blur on (motion_probe.py);
+  motion_object: a glowing ball moving sideways while the shutter is open,
+    seen from above at 128x48 (object_motion_probe.py);
   probe_spot_profile: the plane under a spot (size 45, blend 0.5) at 128x96,
     its whole pool in view (spot_profile.py);
   newcomer_checker, newcomer_dof, newcomer_spot, newcomer_area(_side): a
@@ -462,4 +464,43 @@ bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "newcomer_area.blend"), c
 scene.camera = bpy.data.objects["side camera"]
 scene["prism_probes"] = [(-1.0, -1.0, 0.0), (2.0, -1.0, 0.0)]
 bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "newcomer_area_side.blend"), copy=True)
+
+# Object motion blur (issue 29): a ball of radius 0.25 glowing white
+# (black base, emission 1: radiance 1 in Cycles and in Prism) moving along
+# x at 3 units a frame (keyed linearly, frames 0 to 2), seen from straight
+# above by an orthographic camera 4 units wide at 128x48 (32 px a unit),
+# motion blur on with Blender's default shutter (0.5 frames centred on
+# frame 1): it travels 1.5 units (48 px) while the shutter is open, and
+# its streak is travel + diameter = 2 units, 64 px (object_motion_probe.py).
+clear_scene()
+scene.world.use_nodes = True
+scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
+bpy.ops.mesh.primitive_uv_sphere_add(radius=0.25, location=(-3.0, 0.0, 0.0), segments=32, ring_count=16)
+moving = bpy.context.active_object
+moving.name = "moving ball"
+bpy.ops.object.shade_smooth()
+m = bpy.data.materials.new("glowing white")
+m.use_nodes = True
+b = m.node_tree.nodes["Principled BSDF"]
+b.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+b.inputs["Specular"].default_value = 0.0
+b.inputs["Roughness"].default_value = 1.0
+b.inputs["Emission"].default_value = (1.0, 1.0, 1.0, 1.0)
+b.inputs["Emission Strength"].default_value = 1.0
+moving.data.materials.append(m)
+moving.keyframe_insert("location", frame=0)
+moving.location.x = 3.0
+moving.keyframe_insert("location", frame=2)
+for curve in moving.animation_data.action.fcurves:
+    for key in curve.keyframe_points:
+        key.interpolation = "LINEAR"
+scene.camera = add_camera("camera", (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
+scene.camera.data.type = "ORTHO"
+scene.camera.data.ortho_scale = 4.0
+scene.frame_set(1)
+scene.render.use_motion_blur = True
+scene.render.motion_blur_shutter = 0.5
+scene.render.resolution_x, scene.render.resolution_y = 128, 48
+scene.cycles.samples = 64
+bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "motion_object.blend"), copy=True)
 print(f"make_scenes: wrote {sorted(os.listdir(out))}")
