@@ -404,9 +404,8 @@ def scene_toml(depsgraph, glb_name, settings, motion=None):
             names = ", ".join(f"'{n}'" for n in motion["deforming"][:8])
             more = f" and {len(motion['deforming']) - 8} more" if len(motion["deforming"]) > 8 else ""
             notes.append("motion blur: objects whose shape changes while the shutter is open "
-                         "(armatures, shape keys, animated modifiers) keep the shape of frame "
-                         f"{scene.frame_current}; only their movement as a whole is blurred: "
-                         f"{names}{more}")
+                         "(armatures, shape keys, animated modifiers) keep one shape in Prism; "
+                         f"only their movement as a whole is blurred: {names}{more}")
     elif render.use_motion_blur:
         notes.append("motion blur is not carried: the scene file holds the glTF export of one "
                      f"instant (frame {scene.frame_current}); rendered sharp")
