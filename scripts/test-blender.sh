@@ -68,7 +68,9 @@ for name in probe_point probe_spot probe_sun probe_area probe_area_disk probe_ar
     mkdir -p "$dir"
     spp=1
     case $name in default*|showcase|newcomer_*) spp=4 ;; esac
-    case $name in newcomer_dof|motion_*) spp=16 ;; esac  # a lens or a shutter wants samples
+    # A lens or a shutter wants samples; the pinhole newcomer_checker as many as
+    # newcomer_dof (and Cycles there): dof_probe.py compares them at equal noise.
+    case $name in newcomer_checker|newcomer_dof|motion_*) spp=16 ;; esac
     # Through the add-on, as `blender -b FILE -E PRISM -f 1` does.
     blend "$WORK/$name.blend" --python scripts/blender/use_addon.py \
         -E PRISM -o "$dir/blender_#" -f 1 -- "$ZIP" "$PRISM" "$dir/export" "$spp"
@@ -109,11 +111,13 @@ python3 scripts/blender/glb_mesh.py "$WORK/newcomer_spot/export/scene.glb" "subd
 # and the emitting ball, disabled in viewports but not in renders (a UV
 # sphere of 32 segments and 16 rings: 960 triangles, 482 vertices).
 python3 scripts/blender/glb_mesh.py "$WORK/newcomer_spot/export/scene.glb" emitter 960 482
-# Depth of field: blurred out of focus as Cycles blurs it, sharp in focus.
+# Depth of field: blurred out of focus as Cycles blurs it, sharp in focus
+# (pinhole and lens at equal samples and pixel filter), the lens as Cycles
+# reads Blender's camera.
 mark=$(( $(wc -l <"$WORK/blender.log") + 1 ))
 blend "$WORK/newcomer_dof.blend" --python scripts/blender/dof_probe.py -- \
     "$WORK/newcomer_checker/cycles.exr" "$WORK/newcomer_checker/prism.exr" \
-    "$WORK/newcomer_dof/cycles.exr" "$WORK/newcomer_dof/prism.exr"
+    "$WORK/newcomer_dof/cycles.exr" "$WORK/newcomer_dof/prism.exr" "$WORK/newcomer_dof/export/scene.toml"
 since "$mark" "dof_probe:"
 # Camera motion blur: the camera's smear as Cycles smears it.
 mark=$(( $(wc -l <"$WORK/blender.log") + 1 ))

@@ -363,14 +363,22 @@ scene.camera = add_camera("camera", (0.0, -7.0, 4.0), (math.radians(62.0), 0.0, 
 # either side of x = 0.
 scene["prism_probes"] = [(-1.0, -1.0, 0.0), (1.0, -1.0, 0.0)]
 scene.render.resolution_x, scene.render.resolution_y = 128, 96  # edges for dof_probe.py
+# dof_probe.py compares edges' steepness, which noise and the pixel filter
+# change: Cycles here at Prism's 16 samples (test-blender.sh) and filter (a
+# 1-pixel box), no adaptive sampling; both scenes, pinhole and lens alike.
+scene.cycles.samples, scene.cycles.use_adaptive_sampling = 16, False
+scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
 bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "newcomer_checker.blend"), copy=True)
 # The same with depth of field: f/0.1 (a lens of radius 0.25) focused on the
-# mirror ball; the near floor spreads over about 4 pixels.
+# mirror ball; the near floor spreads over about 4 pixels, the floor at the
+# ball's depth (its cell edge x = 0, between the balls) stays sharp.
 dof = scene.camera.data.dof
 dof.use_dof, dof.aperture_fstop = True, 0.1
 dof.focus_object = bpy.data.objects["mirror"]
 bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "newcomer_dof.blend"), copy=True)
 scene.render.resolution_x, scene.render.resolution_y = 64, 48
+scene.cycles.samples, scene.cycles.use_adaptive_sampling = 32, True
+scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BLACKMAN_HARRIS", 1.5
 
 # 2: a spot light, an emissive object and a vertex-coloured cube under a
 # Subdivision modifier at viewport 0 / render 2, shaded smooth. The probe
