@@ -2,7 +2,7 @@
 
 use glam::{DVec2, DVec3};
 
-use crate::geometry::span::Intervals;
+use crate::geometry::span::{Intervals, Surface};
 use crate::geometry::{
     Aabb, Cone, Csg, Cuboid, Disc, Ellipsoid, MeshInstance, Plane, Polygon, ShapeHit, Sphere, Torus,
 };
@@ -106,6 +106,25 @@ impl Shape {
         }
     }
 
+    /// The outward unit normal where `ray` crosses the surface of an
+    /// analytic solid at `s`, one of the ends [`inside`](Self::inside)
+    /// gave for the same ray; zero at a half-space's open end and for
+    /// shapes without intervals of their own.
+    pub fn surface_normal(&self, ray: &Ray, s: Surface) -> DVec3 {
+        if !s.t.is_finite() {
+            return DVec3::ZERO;
+        }
+        match self {
+            Shape::Sphere(sphere) => sphere.surface_normal(ray, s),
+            Shape::Ellipsoid(e) => e.surface_normal(ray, s),
+            Shape::Plane(p) => p.normal,
+            Shape::Cuboid(b) => b.surface_normal(ray, s),
+            Shape::Cone(c) => c.surface_normal(ray, s),
+            Shape::Torus(t) => t.surface_normal(ray, s),
+            Shape::Polygon(_) | Shape::Disc(_) | Shape::Mesh(_) | Shape::Csg(_) => DVec3::ZERO,
+        }
+    }
+
     /// The nearest hit with t in (t_min, t_max) as a shadow feeler needs
     /// it: distance, geometric normal and the material there (`None`: the
     /// primitive's), without the texture coordinates CSG finds last.
@@ -119,7 +138,7 @@ impl Shape {
         match self {
             Shape::Csg(c) => c
                 .nearest_boundary(ray, t_min, t_max)
-                .map(|b| (b.t, b.normal, Some(b.material))),
+                .map(|b| (b.t, b.normal(ray), Some(b.material))),
             other => other
                 .intersect(ray, t_min, t_max)
                 .map(|h| (h.t, h.normal, h.material)),

@@ -59,6 +59,11 @@ pub fn quadratic_roots(a: f64, b: f64, c: f64) -> Option<(f64, f64)> {
     Some(if t0 <= t1 { (t0, t1) } else { (t1, t0) })
 }
 
+/// The parts of a closed cone's surface (`Surface::part`).
+const SIDE: u8 = 0;
+const BASE: u8 = 1;
+const CAP: u8 = 2;
+
 impl Cone {
     fn slope(&self) -> f64 {
         self.cap_radius - self.base_radius
@@ -148,46 +153,52 @@ impl Cone {
             if !(0.0..=1.0).contains(&o.z) {
                 return Intervals::new();
             }
-            ((-inf, inf), DVec3::ZERO, DVec3::ZERO)
+            ((-inf, inf), SIDE, SIDE)
         } else {
             let (t0, t1) = (-o.z / d.z, (1.0 - o.z) / d.z);
             if d.z > 0.0 {
-                ((t0, t1), -DVec3::Z, DVec3::Z)
+                ((t0, t1), BASE, CAP)
             } else {
-                ((t1, t0), DVec3::Z, -DVec3::Z)
+                ((t1, t0), CAP, BASE)
             }
-        };
-        let side_normal = |t: f64| {
-            let p = o + t * d;
-            DVec3::new(p.x, p.y, -k * (r0 + k * p.z))
-                .try_normalize()
-                .unwrap_or(DVec3::Z * k.signum())
         };
         let mut out = Intervals::new();
         for (s0, s1) in side {
             let enter = if slab.0 >= s0 {
                 (slab.0, enter_cap)
             } else {
-                (s0, side_normal(s0))
+                (s0, SIDE)
             };
             let exit = if slab.1 <= s1 {
                 (slab.1, exit_cap)
             } else {
-                (s1, side_normal(s1))
+                (s1, SIDE)
             };
-            let surface = |(t, n): (f64, DVec3)| Surface {
-                t,
-                normal: if t.is_finite() {
-                    self.transform.normal(n)
-                } else {
-                    DVec3::ZERO
-                },
-            };
+            let surface = |(t, part): (f64, u8)| Surface { t, part };
             if let Some(i) = interval(surface(enter), surface(exit)) {
                 out.push(i);
             }
         }
         out
+    }
+
+    /// The outward unit normal where `ray` crosses the closed solid's
+    /// surface at `s` (see `inside`): the side's from the point, the
+    /// base's −z, the cap's +z (object space).
+    pub fn surface_normal(&self, ray: &Ray, s: Surface) -> DVec3 {
+        let n = match s.part {
+            BASE => -DVec3::Z,
+            CAP => DVec3::Z,
+            _ => {
+                let (o, d) = self.transform.ray_to_object(ray);
+                let (r0, k) = (self.base_radius, self.slope());
+                let p = o + s.t * d;
+                DVec3::new(p.x, p.y, -k * (r0 + k * p.z))
+                    .try_normalize()
+                    .unwrap_or(DVec3::Z * k.signum())
+            }
+        };
+        self.transform.normal(n)
     }
 
     /// Whether the object-space point lies inside the closed solid.

@@ -94,20 +94,25 @@ pub struct Csg {
 }
 
 /// An end of an interval of the combined solid: the surface there. Kept
-/// small (lists of these are built and combined for every ray); what
-/// shading needs beyond the normal is found for the one end that becomes
-/// the hit.
+/// small and cheap (lists of these are built and combined for every ray,
+/// and one end at most becomes the hit): the normal and what shading needs
+/// beyond it are worked out for that one end, from its leaf.
 #[derive(Clone, Copy, Debug)]
 pub struct Boundary<'a> {
     /// Line parameter (±∞: no surface).
     pub t: f64,
-    /// Outward unit normal of the set this boundary bounds.
-    pub normal: DVec3,
+    /// Which part of the leaf's surface (see `Surface::part`).
+    pub part: u8,
+    /// The leaf's own normal where it is known up front: a mesh's
+    /// triangle (as wound); zero for analytic leaves, which give theirs
+    /// when asked (`Shape::surface_normal`).
+    given: DVec3,
     /// The leaf shape the surface belongs to (`None` at ±∞).
     pub leaf: Option<&'a Shape>,
     /// Material of the leaf's surface.
     pub material: u32,
-    /// Whether `normal` is the leaf shape's own turned round.
+    /// Whether the set's outward normal is the leaf's own turned round
+    /// (the end of a subtracted or inverted child, a mesh wound inward).
     pub flipped: bool,
 }
 
@@ -128,7 +133,8 @@ impl<'a> Boundary<'a> {
     pub fn at_infinity(t: f64) -> Self {
         Boundary {
             t,
-            normal: DVec3::ZERO,
+            part: 0,
+            given: DVec3::ZERO,
             leaf: None,
             material: 0,
             flipped: false,
@@ -141,7 +147,8 @@ impl<'a> Boundary<'a> {
         }
         Boundary {
             t: s.t,
-            normal: s.normal,
+            part: s.part,
+            given: DVec3::ZERO,
             leaf: Some(leaf),
             material,
             flipped: false,
@@ -155,7 +162,8 @@ impl<'a> Boundary<'a> {
         let outward = (h.normal.dot(direction) < 0.0) == enters;
         Boundary {
             t: h.t,
-            normal: if outward { h.normal } else { -h.normal },
+            part: 0,
+            given: h.normal,
             leaf: Some(leaf),
             material: h.material.unwrap_or(0),
             flipped: !outward,
@@ -165,30 +173,49 @@ impl<'a> Boundary<'a> {
     /// The same surface bounding the complement.
     fn turned(self) -> Self {
         Boundary {
-            normal: -self.normal,
             flipped: !self.flipped,
             ..self
         }
     }
 
+    /// The leaf's own outward normal here, for the ray the lists were
+    /// built for.
+    fn own_normal(&self, ray: &Ray) -> DVec3 {
+        match self.leaf {
+            Some(leaf) if !matches!(leaf, Shape::Mesh(_)) => leaf.surface_normal(
+                ray,
+                Surface {
+                    t: self.t,
+                    part: self.part,
+                },
+            ),
+            _ => self.given,
+        }
+    }
+
+    /// The outward unit normal of the set this boundary bounds (a
+    /// child's, turned round where the child is subtracted or inverted;
+    /// zero at ±∞), for the ray the lists were built for.
+    pub fn normal(&self, ray: &Ray) -> DVec3 {
+        let own = self.own_normal(ray);
+        if self.flipped { -own } else { own }
+    }
+
     /// The hit this boundary is for `ray`: the leaf's texture coordinates
     /// (and a mesh's shading normal and colour, from its triangle there).
     pub fn hit(&self, ray: &Ray) -> ShapeHit {
-        let mut h = ShapeHit::geometric(self.t, self.normal, ray.direction.dot(self.normal) < 0.0);
+        // The leaf computes its coordinates from its own normal.
+        let own = self.own_normal(ray);
+        let normal = if self.flipped { -own } else { own };
+        let mut h = ShapeHit::geometric(self.t, normal, ray.direction.dot(normal) < 0.0);
         h.material = Some(self.material);
         let Some(leaf) = self.leaf else {
             return h;
         };
-        // The leaf computes its coordinates from its own normal.
-        let own = if self.flipped {
-            -self.normal
-        } else {
-            self.normal
-        };
         if let Shape::Mesh(m) = leaf {
             let reach = 1e-9 * self.t.abs().max(1.0);
             if let Some(m) = m.intersect(ray, self.t - reach, self.t + reach) {
-                let sign = if m.normal.dot(self.normal) < 0.0 {
+                let sign = if m.normal.dot(normal) < 0.0 {
                     -1.0
                 } else {
                     1.0
@@ -576,7 +603,7 @@ mod tests {
     fn end(t: f64) -> Boundary<'static> {
         Boundary {
             t,
-            normal: DVec3::X,
+            given: DVec3::X,
             ..Boundary::at_infinity(t)
         }
     }
@@ -720,7 +747,9 @@ mod tests {
         let d = combine(CsgOp::Difference, &a, &b);
         assert_eq!(ends(&d), [2.0, 3.0]);
         // Its entry is b's exit turned round.
-        assert_eq!(d[0].enter.normal, -DVec3::X);
+        let ray = Ray::new(DVec3::ZERO, DVec3::X);
+        assert!(d[0].enter.flipped);
+        assert_eq!(d[0].enter.normal(&ray), -DVec3::X);
         // Two boxes face to face merge into one solid: no surface at 2.
         let m = combine(CsgOp::Merge, &spans(&[(1.0, 2.0)]), &spans(&[(2.0, 3.0)]));
         assert_eq!(ends(&m), [1.0, 3.0]);

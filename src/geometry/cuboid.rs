@@ -86,23 +86,24 @@ impl Cuboid {
         let (origin, direction) = self.transform.ray_to_object(ray);
         let mut out = Intervals::new();
         if let Some(((t0, a0), (t1, a1))) = slab_interval(origin, direction, self.min, self.max) {
-            let face = |axis: usize, sign: f64| {
-                let mut n = DVec3::ZERO;
-                n[axis] = sign;
-                self.transform.normal(n)
+            // The part is the face: its axis, and whether it faces +axis.
+            let face = |t: f64, axis: usize, sign: f64| Surface {
+                t,
+                part: (2 * axis) as u8 + u8::from(sign > 0.0),
             };
             out.extend(interval(
-                Surface {
-                    t: t0,
-                    normal: face(a0, -direction[a0].signum()),
-                },
-                Surface {
-                    t: t1,
-                    normal: face(a1, direction[a1].signum()),
-                },
+                face(t0, a0, -direction[a0].signum()),
+                face(t1, a1, direction[a1].signum()),
             ));
         }
         out
+    }
+
+    /// The outward unit normal of face `s.part` (see `inside`).
+    pub fn surface_normal(&self, _ray: &Ray, s: Surface) -> DVec3 {
+        let mut n = DVec3::ZERO;
+        n[usize::from(s.part / 2)] = if s.part % 2 == 1 { 1.0 } else { -1.0 };
+        self.transform.normal(n)
     }
 
     /// Whether one face plane of the box separates the point `apex` and

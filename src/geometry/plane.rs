@@ -103,10 +103,7 @@ impl Plane {
             }
             return out;
         }
-        let at = Surface {
-            t: -behind / n_dot_d,
-            normal: self.normal,
-        };
+        let at = Surface::at(-behind / n_dot_d);
         if at.t.is_nan() {
             return out;
         }

@@ -4,30 +4,35 @@
 //! intervals with set operations; see `csg.rs`.
 //!
 //! An interval is closed, [enter, exit], with the surface at each end:
-//! its parameter and the solid's outward unit normal there (world space).
-//! A half-space reaches to ±∞, where there is no surface (normal zero).
+//! its parameter and which part of the solid's surface it lies on (a
+//! box's face, a cone's side or cap). The outward normal there is another
+//! question, asked of the solid only for the end that becomes a hit
+//! (`Shape::surface_normal`): CSG combines many ends for each ray and
+//! keeps one. A half-space reaches to ±∞, where there is no surface.
 //! Intervals come in ascending order, disjoint; one of zero length (a ray
 //! that only touches the solid) is left out, since it encloses nothing.
 
 use arrayvec::ArrayVec;
-use glam::DVec3;
 
 /// A point where the line crosses a solid's surface.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Surface {
     /// Line parameter (±∞ for a half-space's open end).
     pub t: f64,
-    /// The solid's outward unit normal there, in world space (zero at ±∞).
-    pub normal: DVec3,
+    /// Which part of the surface: what the solid works its normal out
+    /// from (a box's face, a cone's side or caps; 0 for smooth solids).
+    pub part: u8,
 }
 
 impl Surface {
+    /// The crossing at `t` of a solid with one smooth surface.
+    pub const fn at(t: f64) -> Self {
+        Surface { t, part: 0 }
+    }
+
     /// No surface: the open end of a half-space.
     pub const fn at_infinity(t: f64) -> Self {
-        Surface {
-            t,
-            normal: DVec3::ZERO,
-        }
+        Surface { t, part: 0 }
     }
 }
 
@@ -54,12 +59,8 @@ pub fn interval(enter: Surface, exit: Surface) -> Option<Interval> {
 /// order (`roots`) and whether the line starts inside (at t = −∞): each
 /// stretch between consecutive roots is classified by f at its middle, so
 /// that a root counted twice or a touch left in cannot invert what
-/// follows. `normal(t)` gives the outward normal at a root.
-pub fn classify_between_roots(
-    roots: &[f64],
-    inside_at: impl Fn(f64) -> bool,
-    normal: impl Fn(f64) -> DVec3,
-) -> Intervals {
+/// follows.
+pub fn classify_between_roots(roots: &[f64], inside_at: impl Fn(f64) -> bool) -> Intervals {
     let mut out = Intervals::new();
     let mut open: Option<f64> = None;
     for pair in roots.windows(2) {
@@ -71,28 +72,20 @@ pub fn classify_between_roots(
         match (inside, open) {
             (true, None) => open = Some(a),
             (false, Some(start)) => {
-                push(&mut out, start, a, &normal);
+                push(&mut out, start, a);
                 open = None;
             }
             _ => {}
         }
     }
     if let (Some(start), Some(&last)) = (open, roots.last()) {
-        push(&mut out, start, last, &normal);
+        push(&mut out, start, last);
     }
     out
 }
 
-fn push(out: &mut Intervals, a: f64, b: f64, normal: &impl Fn(f64) -> DVec3) {
-    let enter = Surface {
-        t: a,
-        normal: normal(a),
-    };
-    let exit = Surface {
-        t: b,
-        normal: normal(b),
-    };
-    if let Some(i) = interval(enter, exit) {
+fn push(out: &mut Intervals, a: f64, b: f64) {
+    if let Some(i) = interval(Surface::at(a), Surface::at(b)) {
         let _ = out.try_push(i);
     }
 }
@@ -105,20 +98,17 @@ mod tests {
     fn stretches_are_classified_by_their_middles_not_by_counting() {
         // Inside on (1, 2) and (3, 4); a duplicated root at 3 changes nothing.
         let inside = |t: f64| (1.0..2.0).contains(&t) || (3.0..4.0).contains(&t);
-        let got = classify_between_roots(&[1.0, 2.0, 3.0, 3.0, 4.0], inside, |_| DVec3::X);
+        let got = classify_between_roots(&[1.0, 2.0, 3.0, 3.0, 4.0], inside);
         let ends: Vec<_> = got.iter().map(|i| (i.enter.t, i.exit.t)).collect();
         assert_eq!(ends, [(1.0, 2.0), (3.0, 4.0)]);
         // A touch at 2.5 (a root where f does not change sign) adds nothing.
-        let got = classify_between_roots(&[1.0, 2.0, 2.5, 3.0, 4.0], inside, |_| DVec3::X);
+        let got = classify_between_roots(&[1.0, 2.0, 2.5, 3.0, 4.0], inside);
         assert_eq!(got.len(), 2);
     }
 
     #[test]
     fn a_touch_is_no_interval() {
-        let s = Surface {
-            t: 1.0,
-            normal: DVec3::Y,
-        };
+        let s = Surface::at(1.0);
         assert!(interval(s, s).is_none());
     }
 }

@@ -170,13 +170,14 @@ impl Sphere {
     pub fn inside(&self, ray: &Ray) -> Intervals {
         let mut out = Intervals::new();
         if let Some((t0, t1)) = sphere_roots(ray.origin, ray.direction, self.center, self.radius) {
-            let at = |t: f64| Surface {
-                t,
-                normal: (ray.at(t) - self.center) / self.radius,
-            };
-            out.extend(interval(at(t0), at(t1)));
+            out.extend(interval(Surface::at(t0), Surface::at(t1)));
         }
         out
+    }
+
+    /// The outward unit normal where `ray` crosses the surface at `s`.
+    pub fn surface_normal(&self, ray: &Ray, s: Surface) -> DVec3 {
+        (ray.at(s.t) - self.center) / self.radius
     }
 
     /// The bounding box.
@@ -233,13 +234,15 @@ impl Ellipsoid {
         let (origin, direction) = self.transform.ray_to_object(ray);
         let mut out = Intervals::new();
         if let Some((t0, t1)) = sphere_roots(origin, direction, DVec3::ZERO, 1.0) {
-            let at = |t: f64| Surface {
-                t,
-                normal: self.transform.normal(origin + t * direction),
-            };
-            out.extend(interval(at(t0), at(t1)));
+            out.extend(interval(Surface::at(t0), Surface::at(t1)));
         }
         out
+    }
+
+    /// The outward unit normal where `ray` crosses the surface at `s`.
+    pub fn surface_normal(&self, ray: &Ray, s: Surface) -> DVec3 {
+        let (origin, direction) = self.transform.ray_to_object(ray);
+        self.transform.normal(origin + s.t * direction)
     }
 
     /// The bounding box: along world axis i the half extent is the length of

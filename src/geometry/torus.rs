@@ -30,7 +30,7 @@ use arrayvec::ArrayVec;
 use glam::{DVec2, DVec3};
 
 use super::cuboid::placed_bounds;
-use super::span::{Intervals, classify_between_roots};
+use super::span::{Intervals, Surface, classify_between_roots};
 use super::{Aabb, ShapeHit};
 use crate::math::{Ray, Transform, transcendental};
 
@@ -181,11 +181,13 @@ impl Torus {
     pub fn inside(&self, ray: &Ray) -> Intervals {
         let (o, d) = self.transform.ray_to_object(ray);
         let roots = self.roots(o, d, false, (f64::NEG_INFINITY, f64::INFINITY), false);
-        classify_between_roots(
-            &roots,
-            |t| self.implicit(o + t * d) < 0.0,
-            |t| self.transform.normal(self.object_normal(o + t * d)),
-        )
+        classify_between_roots(&roots, |t| self.implicit(o + t * d) < 0.0)
+    }
+
+    /// The outward unit normal where `ray` crosses the surface at `s`.
+    pub fn surface_normal(&self, ray: &Ray, s: Surface) -> DVec3 {
+        let (o, d) = self.transform.ray_to_object(ray);
+        self.transform.normal(self.object_normal(o + s.t * d))
     }
 
     /// The outward normal at an object-space point on the surface.
