@@ -23,6 +23,8 @@ Set-up: bench/.venv (benchenv) with embreex, numpy and open3d-cpu from
 PyPI; this tree's package is installed there with `pip install ./python`
 (--no-install skips that).
 Usage: python3 bench/rayqueries.py [--rounds N] [--rays N] [--no-install]
+       python3 bench/rayqueries.py --dump DIR   (the meshes and rays as raw
+       f64/u32 files for examples/rayquerybench.rs, Prism's side in Rust)
 """
 
 import argparse
@@ -264,13 +266,31 @@ def watertight_rays(v, f, inside, n, rng):
     return o.astype(np.float32), (target - o).astype(np.float32)
 
 
+def dump(out, n):
+    """Writes MESH.v (f64), MESH.f (u32) and MESH.KIND.o / .d (f64) for the
+    bunny and the terrain: the rays main() times, as Prism receives them."""
+    os.makedirs(out, exist_ok=True)
+    rng = np.random.default_rng(1)
+    for name, (v, f) in meshes():
+        tag = name.split()[0]
+        v.astype(np.float64).tofile(os.path.join(out, f"{tag}.v"))
+        f.astype(np.uint32).tofile(os.path.join(out, f"{tag}.f"))
+        for kind, (o, d) in (("coherent", camera_rays(v, n)), ("incoherent", random_rays(v, n, rng))):
+            o.astype(np.float64).tofile(os.path.join(out, f"{tag}.{kind}.o"))
+            d.astype(np.float64).tofile(os.path.join(out, f"{tag}.{kind}.d"))
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--rays", type=int, default=1_000_000)
     parser.add_argument("--watertight-rays", type=int, default=1_000_000)
     parser.add_argument("--no-install", action="store_true")
+    parser.add_argument("--dump", metavar="DIR")
     args = parser.parse_args()
+    if args.dump:
+        dump(args.dump, args.rays)
+        return
     if not args.no_install:
         install_prism()
     import open3d  # noqa: F401 (imported once, outside the timings)

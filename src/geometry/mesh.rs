@@ -113,6 +113,21 @@ pub struct MeshHit {
     pub feeler_offset: DVec3,
 }
 
+/// A ray-mesh hit without the shading fields (uv, colour, shading normal,
+/// feeler offset): what a ray query returns. Each field is, to the bit,
+/// the [`MeshHit`]'s of the same ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FacetHit {
+    /// Ray parameter.
+    pub t: f64,
+    /// The triangle's index in the [`MeshData`] the mesh was built from.
+    pub triangle: u32,
+    /// Barycentric weights of the triangle's corners a, b, c (sum 1).
+    pub barycentric: DVec3,
+    /// Unit geometric normal (right-hand rule of the vertex order).
+    pub normal: DVec3,
+}
+
 impl Mesh {
     /// Checks `data` and builds the BVH.
     pub fn new(data: MeshData) -> Result<Mesh, MeshError> {
@@ -333,10 +348,11 @@ impl Mesh {
     }
 
     /// Calls `each` with the index (in the [`MeshData`]) and hit of every
-    /// triangle hit with t in (t_min, t_max), t_min ≥ 0, in the order the
-    /// tree meets them: the closest-hit traversal with a reach that never
-    /// shrinks, each triangle tested as [`intersect`](Self::intersect)
-    /// tests it.
+    /// triangle hit with t in (t_min, t_max), t_min ≥ 0, in no particular
+    /// order: the any-hit traversal (no child sorted by distance, the
+    /// reach fixed) run to its end, each triangle tested as
+    /// [`intersect`](Self::intersect) tests it. Compiled once per axis
+    /// permutation, as [`any_hit`](Self::any_hit) is.
     pub fn each_hit(
         &self,
         origin: DVec3,
@@ -345,25 +361,94 @@ impl Mesh {
         t_max: f64,
         mut each: impl FnMut(u32, TriangleHit),
     ) {
+        let kernel = simd::kernel();
         let ray = WatertightRay::new(origin, direction);
-        let order = self.bvh.order();
-        let test = |position: usize, _reach: f64| {
-            let [a, b, c] = self.corners(position);
-            if let Some(h) = triangle_hit(&ray, a, b, c, t_min, t_max) {
-                each(order[position], h);
+        let node_ray = NodeRay::new(origin, direction);
+        let each = &mut each;
+        match ray.permutation() {
+            0 => self.each_as::<0>(kernel, ray, &node_ray, t_min, t_max, each),
+            1 => self.each_as::<1>(kernel, ray, &node_ray, t_min, t_max, each),
+            2 => self.each_as::<2>(kernel, ray, &node_ray, t_min, t_max, each),
+            3 => self.each_as::<3>(kernel, ray, &node_ray, t_min, t_max, each),
+            4 => self.each_as::<4>(kernel, ray, &node_ray, t_min, t_max, each),
+            _ => self.each_as::<5>(kernel, ray, &node_ray, t_min, t_max, each),
+        }
+    }
+
+    /// How many triangles the ray hits with t in (t_min, t_max): what
+    /// [`each_hit`](Self::each_hit) reports, counted.
+    pub fn count_hits(&self, origin: DVec3, direction: DVec3, t_min: f64, t_max: f64) -> u32 {
+        let mut count = 0u32;
+        self.each_hit(origin, direction, t_min, t_max, |_, _| {
+            count = count.saturating_add(1);
+        });
+        count
+    }
+
+    /// [`each_hit`](Self::each_hit) for a ray of axis permutation `P`.
+    #[inline(always)]
+    fn each_as<const P: u8>(
+        &self,
+        kernel: Kernel,
+        ray: WatertightRay,
+        node_ray: &NodeRay,
+        t_min: f64,
+        t_max: f64,
+        each: &mut impl FnMut(u32, TriangleHit),
+    ) {
+        let leaf = EveryTriangle::<_, P> {
+            mesh: self,
+            ray,
+            t_min,
+            t_max,
+            each,
+        };
+        self.bvh.any_on(kernel, node_ray, t_max, leaf);
+    }
+
+    /// [`count_hits`](Self::count_hits) for each of up to [`PACKET`] rays
+    /// (`rays[k]` is origin and direction, `t_max[k]` its limit), traced
+    /// together as [`any_hit_packet`](Self::any_hit_packet) traces them,
+    /// to the end: `counts[k]` is added to.
+    ///
+    /// # Panics
+    /// If there are more than [`PACKET`] rays, or `t_max` or `counts` is
+    /// not as long as `rays`.
+    pub fn count_hits_packet(
+        &self,
+        rays: &[(DVec3, DVec3)],
+        t_min: f64,
+        t_max: &[f64],
+        counts: &mut [u32],
+    ) {
+        assert!(rays.len() <= PACKET && t_max.len() == rays.len() && counts.len() == rays.len());
+        let Some(packet) = NodePacket::new(rays) else {
+            for ((count, &(o, d)), &t) in counts.iter_mut().zip(rays).zip(t_max) {
+                *count = count.saturating_add(self.count_hits(o, d, t_min, t));
             }
-            None
+            return;
+        };
+        let limits = padded(t_max);
+        let mut leaf = CountingPacket {
+            mesh: self,
+            rays: LeafRays::new(rays),
+            t_min,
+            t_max: limits,
+            counts: [0; PACKET],
         };
         self.bvh
-            .closest(&NodeRay::new(origin, direction), t_max, test);
+            .any_packet_on(simd::kernel(), &packet, &limits, &mut leaf);
+        for (count, &n) in counts.iter_mut().zip(&leaf.counts) {
+            *count = count.saturating_add(n);
+        }
     }
 
     /// How many triangles each of `rays` hits with t in (t_min, t_max[k])
     /// (what [`each_hit`](Self::each_hit) reports for it, counted), traced
     /// [`STREAM`] at a time in turns as
-    /// [`intersect_stream`](Self::intersect_stream) traces them: for
-    /// incoherent rays through a mesh larger than the cache. `counts[k]`
-    /// is added to.
+    /// [`any_hit_stream`](Self::any_hit_stream) traces them, to the end:
+    /// for incoherent rays through a mesh larger than the cache.
+    /// `counts[k]` is added to.
     ///
     /// # Panics
     /// If `t_max` or `counts` is not as long as `rays`.
@@ -384,6 +469,7 @@ impl Mesh {
             let ray = |k: usize| rays[k.min(rays.len() - 1)];
             let mut limits = [f64::NEG_INFINITY; STREAM];
             limits[..t_max.len()].copy_from_slice(t_max);
+            let limits = limits;
             let mut tests: [CountingTriangles; STREAM] =
                 std::array::from_fn(|k| CountingTriangles {
                     mesh: self,
@@ -394,7 +480,7 @@ impl Mesh {
                 });
             let node_rays = std::array::from_fn(|k| NodeRay::new(ray(k).0, ray(k).1));
             self.bvh
-                .closest_stream_on(kernel, &node_rays, rays.len(), &mut limits, &mut tests);
+                .any_stream_on(kernel, &node_rays, rays.len(), &limits, &mut tests);
             for (count, test) in counts.iter_mut().zip(&tests) {
                 *count = count.saturating_add(test.count);
             }
@@ -435,7 +521,7 @@ impl Mesh {
         t_min: f64,
         t_max: f64,
     ) -> Option<MeshHit> {
-        let mut leaf = ClosestTriangle {
+        let mut leaf = ClosestTriangle::<ANY_AXES> {
             mesh: self,
             ray: WatertightRay::new(origin, direction),
             t_min,
@@ -445,6 +531,44 @@ impl Mesh {
             .closest_on(kernel, &NodeRay::new(origin, direction), t_max, &mut leaf);
         let (triangle, h) = leaf.best?;
         Some(self.surface(triangle, h.barycentric, h.t, direction))
+    }
+
+    /// [`intersect`](Self::intersect) without the shading fields: what a
+    /// ray query needs, each field the same bits.
+    pub fn intersect_facet(
+        &self,
+        origin: DVec3,
+        direction: DVec3,
+        t_min: f64,
+        t_max: f64,
+    ) -> Option<FacetHit> {
+        self.closest_on(simd::kernel(), origin, direction, t_min, t_max, |p, h| {
+            self.facet(p, h)
+        })
+    }
+
+    /// The closest-hit search of `intersect`, its hit (leaf position and
+    /// triangle hit) made into an answer by `finish`.
+    #[inline(always)]
+    fn closest_on<H>(
+        &self,
+        kernel: Kernel,
+        origin: DVec3,
+        direction: DVec3,
+        t_min: f64,
+        t_max: f64,
+        finish: impl FnOnce(usize, TriangleHit) -> H,
+    ) -> Option<H> {
+        let mut leaf = ClosestTriangle::<ANY_AXES> {
+            mesh: self,
+            ray: WatertightRay::new(origin, direction),
+            t_min,
+            best: None,
+        };
+        self.bvh
+            .closest_on(kernel, &NodeRay::new(origin, direction), t_max, &mut leaf);
+        let (triangle, h) = leaf.best?;
+        Some(finish(triangle, h))
     }
 
     /// [`intersect`](Self::intersect) for each of `rays` (origin and
@@ -476,6 +600,8 @@ impl Mesh {
         t_max: &[f64],
         hits: &mut [Option<MeshHit>],
     ) {
+        // Not through `closest_stream_on`: the renderer's path kept as it
+        // was compiled (through it, 1-2 % slower renders of the bunny).
         assert!(t_max.len() == rays.len() && hits.len() == rays.len());
         for ((rays, t_max), hits) in rays
             .chunks(STREAM)
@@ -483,12 +609,13 @@ impl Mesh {
             .zip(hits.chunks_mut(STREAM))
         {
             let ray = |k: usize| rays[k.min(rays.len() - 1)];
-            let mut tests: [ClosestTriangle; STREAM] = std::array::from_fn(|k| ClosestTriangle {
-                mesh: self,
-                ray: WatertightRay::new(ray(k).0, ray(k).1),
-                t_min,
-                best: None,
-            });
+            let mut tests: [ClosestTriangle; STREAM] =
+                std::array::from_fn(|k| ClosestTriangle::<ANY_AXES> {
+                    mesh: self,
+                    ray: WatertightRay::new(ray(k).0, ray(k).1),
+                    t_min,
+                    best: None,
+                });
             let node_rays = std::array::from_fn(|k| NodeRay::new(ray(k).0, ray(k).1));
             let mut limits = [f64::NEG_INFINITY; STREAM];
             limits[..t_max.len()].copy_from_slice(t_max);
@@ -498,6 +625,58 @@ impl Mesh {
                 *hit = test
                     .best
                     .map(|(triangle, h)| self.surface(triangle, h.barycentric, h.t, ray(k).1));
+            }
+        }
+    }
+
+    /// [`intersect_stream`](Self::intersect_stream) without the shading
+    /// fields (see [`intersect_facet`](Self::intersect_facet)).
+    pub fn intersect_facet_stream(
+        &self,
+        rays: &[(DVec3, DVec3)],
+        t_min: f64,
+        t_max: &[f64],
+        hits: &mut [Option<FacetHit>],
+    ) {
+        self.closest_stream_on(simd::kernel(), rays, t_min, t_max, hits, |p, h, _| {
+            self.facet(p, h)
+        });
+    }
+
+    /// The streamed closest-hit search of `intersect_stream`, each hit
+    /// (leaf position, triangle hit, the ray's direction) made into an
+    /// answer by `finish`.
+    #[inline(always)]
+    fn closest_stream_on<H>(
+        &self,
+        kernel: Kernel,
+        rays: &[(DVec3, DVec3)],
+        t_min: f64,
+        t_max: &[f64],
+        hits: &mut [Option<H>],
+        finish: impl Fn(usize, TriangleHit, DVec3) -> H,
+    ) {
+        assert!(t_max.len() == rays.len() && hits.len() == rays.len());
+        for ((rays, t_max), hits) in rays
+            .chunks(STREAM)
+            .zip(t_max.chunks(STREAM))
+            .zip(hits.chunks_mut(STREAM))
+        {
+            let ray = |k: usize| rays[k.min(rays.len() - 1)];
+            let mut tests: [ClosestTriangle; STREAM] =
+                std::array::from_fn(|k| ClosestTriangle::<ANY_AXES> {
+                    mesh: self,
+                    ray: WatertightRay::new(ray(k).0, ray(k).1),
+                    t_min,
+                    best: None,
+                });
+            let node_rays = std::array::from_fn(|k| NodeRay::new(ray(k).0, ray(k).1));
+            let mut limits = [f64::NEG_INFINITY; STREAM];
+            limits[..t_max.len()].copy_from_slice(t_max);
+            self.bvh
+                .closest_stream_on(kernel, &node_rays, rays.len(), &mut limits, &mut tests);
+            for (k, (hit, test)) in hits.iter_mut().zip(&tests).enumerate() {
+                *hit = test.best.map(|(triangle, h)| finish(triangle, h, ray(k).1));
             }
         }
     }
@@ -623,6 +802,7 @@ impl Mesh {
         t_max: &[f64],
         hits: &mut [Option<MeshHit>],
     ) {
+        // Not through `closest_packet_on`, as `intersect_stream_on`.
         assert!(rays.len() <= PACKET && t_max.len() == rays.len() && hits.len() == rays.len());
         let Some(packet) = NodePacket::new(rays) else {
             for ((hit, &(o, d)), &t) in hits.iter_mut().zip(rays).zip(t_max) {
@@ -642,6 +822,54 @@ impl Mesh {
             .closest_packet_on(kernel, &packet, &mut limits, &mut leaf);
         for ((hit, best), ray) in hits.iter_mut().zip(&leaf.best).zip(rays) {
             *hit = best.map(|(triangle, h)| self.surface(triangle, h.barycentric, h.t, ray.1));
+        }
+    }
+
+    /// [`intersect_packet`](Self::intersect_packet) without the shading
+    /// fields (see [`intersect_facet`](Self::intersect_facet)).
+    pub fn intersect_facet_packet(
+        &self,
+        rays: &[(DVec3, DVec3)],
+        t_min: f64,
+        t_max: &[f64],
+        hits: &mut [Option<FacetHit>],
+    ) {
+        self.closest_packet_on(simd::kernel(), rays, t_min, t_max, hits, |p, h, _| {
+            self.facet(p, h)
+        });
+    }
+
+    /// The packet search of `intersect_packet`, each hit (leaf position,
+    /// triangle hit, the ray's direction) made into an answer by `finish`.
+    #[inline(always)]
+    fn closest_packet_on<H>(
+        &self,
+        kernel: Kernel,
+        rays: &[(DVec3, DVec3)],
+        t_min: f64,
+        t_max: &[f64],
+        hits: &mut [Option<H>],
+        finish: impl Fn(usize, TriangleHit, DVec3) -> H,
+    ) {
+        assert!(rays.len() <= PACKET && t_max.len() == rays.len() && hits.len() == rays.len());
+        let Some(packet) = NodePacket::new(rays) else {
+            for ((hit, &(o, d)), &t) in hits.iter_mut().zip(rays).zip(t_max) {
+                *hit = self.closest_on(kernel, o, d, t_min, t, |p, h| finish(p, h, d));
+            }
+            return;
+        };
+        let mut limits = padded(t_max);
+        let mut leaf = ClosestTriangles {
+            mesh: self,
+            rays: LeafRays::new(rays),
+            t_min,
+            best: [None; PACKET],
+            reach: limits,
+        };
+        self.bvh
+            .closest_packet_on(kernel, &packet, &mut limits, &mut leaf);
+        for ((hit, best), ray) in hits.iter_mut().zip(&leaf.best).zip(rays) {
+            *hit = best.map(|(triangle, h)| finish(triangle, h, ray.1));
         }
     }
 
@@ -689,7 +917,7 @@ impl Mesh {
     fn surface(&self, triangle: usize, bary: DVec3, t: f64, direction: DVec3) -> MeshHit {
         let [ia, ib, ic] = self.triangles[triangle].map(|i| i as usize);
         let [a, b, c] = self.corners(triangle);
-        let normal = (b - a).cross(c - a).normalize_or_zero();
+        let normal = facet_normal([a, b, c]);
         let interpolate3 = |v: &[DVec3]| bary.x * v[ia] + bary.y * v[ib] + bary.z * v[ic];
         let (shading_normal, feeler_offset) = if self.normals.is_empty() {
             (normal, DVec3::ZERO)
@@ -729,6 +957,26 @@ impl Mesh {
             feeler_offset,
         }
     }
+
+    /// The hit `h` of the triangle at leaf position `triangle` as a
+    /// [`FacetHit`]: [`surface`](Self::surface)'s fields that need no
+    /// shading data.
+    #[inline(always)]
+    fn facet(&self, triangle: usize, h: TriangleHit) -> FacetHit {
+        FacetHit {
+            t: h.t,
+            triangle: self.bvh.order()[triangle],
+            barycentric: h.barycentric,
+            normal: facet_normal(self.corners(triangle)),
+        }
+    }
+}
+
+/// The unit geometric normal of triangle (a, b, c): (b − a) × (c − a),
+/// normalised (zero for a degenerate triangle).
+#[inline(always)]
+fn facet_normal([a, b, c]: [DVec3; 3]) -> DVec3 {
+    (b - a).cross(c - a).normalize_or_zero()
 }
 
 /// A packet's limits, lanes past the last ray at −∞ (no ray there).
@@ -772,7 +1020,7 @@ impl<'r> LeafRays<'r> {
 
 /// The closest-hit leaf test: the watertight test, keeping the nearest hit
 /// and, of hits at the same t, the triangle first in the mesh's own order.
-struct ClosestTriangle<'a> {
+struct ClosestTriangle<'a, const P: u8 = ANY_AXES> {
     mesh: &'a Mesh,
     ray: WatertightRay,
     t_min: f64,
@@ -780,10 +1028,10 @@ struct ClosestTriangle<'a> {
     best: Option<(usize, TriangleHit)>,
 }
 
-impl ClosestTest for ClosestTriangle<'_> {
+impl<const P: u8> ClosestTest for ClosestTriangle<'_, P> {
     #[inline(always)]
     fn test(&mut self, position: usize, t_max: f64) -> Option<f64> {
-        closer_triangle(
+        closer_triangle::<P>(
             self.mesh,
             &self.ray,
             self.t_min,
@@ -818,7 +1066,7 @@ fn prefetch_triangles(mesh: &Mesh, position: usize, count: usize, what: Fetch) {
     }
 }
 
-impl ClosestTest for &mut ClosestTriangle<'_> {
+impl<const P: u8> ClosestTest for &mut ClosestTriangle<'_, P> {
     #[inline(always)]
     fn test(&mut self, position: usize, t_max: f64) -> Option<f64> {
         (**self).test(position, t_max)
@@ -856,9 +1104,9 @@ impl PacketClosestTest for &mut ClosestTriangles<'_> {
                 let k = scan.trailing_zeros() as usize;
                 scan &= scan - 1;
                 let (ray, best) = (&one_by_one[k], &mut self.best[k]);
-                if let Some(t) =
-                    closer_triangle(self.mesh, ray, self.t_min, best, position, t_max[k])
-                {
+                if let Some(t) = closer_triangle::<ANY_AXES>(
+                    self.mesh, ray, self.t_min, best, position, t_max[k],
+                ) {
                     t_max[k] = t;
                     self.reach[k] = t.next_up();
                     closer |= 1 << k;
@@ -889,11 +1137,17 @@ impl PacketClosestTest for &mut ClosestTriangles<'_> {
     }
 }
 
-/// Tests the triangle at leaf position `position`; keeps it in `best` when
+/// The leaf tests' permutation parameter for a ray of any permutation
+/// (its axes read at run time); 0 to 5 name one (see
+/// `WatertightRay::permutation`).
+const ANY_AXES: u8 = u8::MAX;
+
+/// Tests the triangle at leaf position `position` (with the ray's axes
+/// those of permutation `P`, or its own for `ANY_AXES`); keeps it in `best` when
 /// it is nearer than the hit held there, or as near and first in the
 /// mesh's own order, and then returns its distance.
 #[inline(always)]
-fn closer_triangle(
+fn closer_triangle<const P: u8>(
     mesh: &Mesh,
     ray: &WatertightRay,
     t_min: f64,
@@ -908,7 +1162,11 @@ fn closer_triangle(
     } else {
         t_max
     };
-    let h = triangle_hit(ray, a, b, c, t_min, limit)?;
+    let h = if P == ANY_AXES {
+        triangle_hit(ray, a, b, c, t_min, limit)
+    } else {
+        triangle_hit_as::<P>(ray, a, b, c, t_min, limit)
+    }?;
     let order = mesh.bvh.order();
     if best.is_some_and(|(held, bh)| h.t == bh.t && order[held] < order[position]) {
         return None;
@@ -933,9 +1191,31 @@ impl<const P: u8> AnyTest for BlockingTriangle<'_, P> {
     }
 }
 
+/// The leaf test of `each_hit` for a ray of axis permutation `P`: every
+/// triangle hit within (t_min, t_max) reported to `each`; never blocks, so
+/// the any-hit traversal runs to its end.
+struct EveryTriangle<'a, F, const P: u8> {
+    mesh: &'a Mesh,
+    ray: WatertightRay,
+    t_min: f64,
+    t_max: f64,
+    each: &'a mut F,
+}
+
+impl<F: FnMut(u32, TriangleHit), const P: u8> AnyTest for EveryTriangle<'_, F, P> {
+    #[inline(always)]
+    fn test(&mut self, position: usize) -> bool {
+        let [a, b, c] = self.mesh.corners(position);
+        if let Some(h) = triangle_hit_as::<P>(&self.ray, a, b, c, self.t_min, self.t_max) {
+            (self.each)(self.mesh.bvh.order()[position], h);
+        }
+        false
+    }
+}
+
 /// The counting leaf test of one ray of a stream: each triangle hit within
-/// the fixed (t_min, t_max) counted, as `each_hit` reports it; the reach
-/// never shrinks.
+/// the fixed (t_min, t_max) counted, as `each_hit` reports it; never
+/// blocks.
 struct CountingTriangles<'a> {
     mesh: &'a Mesh,
     ray: WatertightRay,
@@ -944,14 +1224,14 @@ struct CountingTriangles<'a> {
     count: u32,
 }
 
-impl ClosestTest for CountingTriangles<'_> {
+impl AnyTest for CountingTriangles<'_> {
     #[inline(always)]
-    fn test(&mut self, position: usize, _reach: f64) -> Option<f64> {
+    fn test(&mut self, position: usize) -> bool {
         let [a, b, c] = self.mesh.corners(position);
-        if triangle_hit(&self.ray, a, b, c, self.t_min, self.t_max).is_some() {
+        if triangle_hit_dispatched(&self.ray, a, b, c, self.t_min, self.t_max).is_some() {
             self.count = self.count.saturating_add(1);
         }
-        None
+        false
     }
 
     #[inline(always)]
@@ -1008,6 +1288,42 @@ impl PacketAnyTest for BlockingTriangles<'_> {
             blocked |= u32::from(hit.is_some()) << k;
         }
         blocked
+    }
+}
+
+/// The counting leaf test of a packet: each triangle hit counted per ray,
+/// tested as [`BlockingTriangles`] tests it; never blocks.
+struct CountingPacket<'a> {
+    mesh: &'a Mesh,
+    rays: LeafRays<'a>,
+    t_min: f64,
+    t_max: [f64; PACKET],
+    counts: [u32; PACKET],
+}
+
+impl PacketAnyTest for &mut CountingPacket<'_> {
+    #[inline(always)]
+    fn test(&mut self, rays: u32, position: usize) -> u32 {
+        let [a, b, c] = self.mesh.corners(position);
+        let (one_by_one, lanes) = self.rays.get();
+        let mut hit = 0;
+        if let Some(lanes) = lanes.as_ref().filter(|_| rays.count_ones() >= LANES_FROM) {
+            hit = triangle_hit_lanes(lanes, rays, a, b, c, self.t_min, &self.t_max).mask;
+        } else {
+            let mut scan = rays;
+            while scan != 0 {
+                let k = scan.trailing_zeros() as usize;
+                scan &= scan - 1;
+                let h = triangle_hit_dispatched(&one_by_one[k], a, b, c, self.t_min, self.t_max[k]);
+                hit |= u32::from(h.is_some()) << k;
+            }
+        }
+        while hit != 0 {
+            let k = hit.trailing_zeros() as usize;
+            hit &= hit - 1;
+            self.counts[k] = self.counts[k].saturating_add(1);
+        }
+        0
     }
 }
 
@@ -1327,7 +1643,62 @@ pub(crate) mod tests {
                 }
             }
             assert!(hits_seen > 1_000, "{hits_seen}");
+            // The query's forms on this CPU's kernel: facet hits and
+            // counts, streamed, against the renderer's hit and brute force.
+            let mut facets = vec![None; rays.len()];
+            mesh.intersect_facet_stream(&rays, 0.0, &t_max, &mut facets);
+            let mut counts = vec![0; rays.len()];
+            for ((rays, t_max), counts) in rays
+                .chunks(STREAM)
+                .zip(t_max.chunks(STREAM))
+                .zip(counts.chunks_mut(STREAM))
+            {
+                mesh.count_hits_stream(rays, 0.0, t_max, counts);
+            }
+            for (k, &(o, d)) in rays.iter().enumerate() {
+                assert_facet_and_count(&mesh, &data, (o, d), t_max[k], facets[k], counts[k]);
+            }
         }
+    }
+
+    /// `facet` and `count`, found for ray `(o, d)` up to `t_max` by a
+    /// packet or stream, are the renderer's hit's fields and the number of
+    /// triangles brute force hits, as `intersect_facet` and `count_hits`
+    /// give them for the ray alone.
+    fn assert_facet_and_count(
+        mesh: &Mesh,
+        data: &MeshData,
+        (o, d): (DVec3, DVec3),
+        t_max: f64,
+        facet: Option<FacetHit>,
+        count: u32,
+    ) {
+        let expected = mesh.intersect(o, d, 0.0, t_max).map(|h| FacetHit {
+            t: h.t,
+            triangle: h.triangle,
+            barycentric: h.barycentric,
+            normal: h.normal,
+        });
+        let bits = |h: Option<FacetHit>| {
+            h.map(|h| {
+                let [x, y, z] = h.barycentric.to_array().map(f64::to_bits);
+                let [nx, ny, nz] = h.normal.to_array().map(f64::to_bits);
+                (h.t.to_bits(), h.triangle, [x, y, z, nx, ny, nz])
+            })
+        };
+        assert_eq!(bits(facet), bits(expected), "ray {o} {d}");
+        assert_eq!(bits(mesh.intersect_facet(o, d, 0.0, t_max)), bits(expected));
+        let ray = WatertightRay::new(o, d);
+        let brute = data
+            .triangles
+            .iter()
+            .filter(|t| {
+                let [a, b, c] = t.map(|i| data.positions[i as usize]);
+                triangle_hit(&ray, a, b, c, 0.0, t_max).is_some()
+            })
+            .count();
+        assert_eq!(count as usize, brute, "ray {o} {d}");
+        assert_eq!(mesh.count_hits(o, d, 0.0, t_max) as usize, brute);
     }
 
     fn packets_answer_as_alone(data: &MeshData, rng: &mut crate::math::rng::PixelRng) {
@@ -1388,6 +1759,13 @@ pub(crate) mod tests {
                     hits += usize::from(alone.is_some());
                     blocked += usize::from(any);
                 }
+            }
+            let mut facets = [None; PACKET];
+            mesh.intersect_facet_packet(&rays, 0.0, &t_max, &mut facets[..len]);
+            let mut counts = [0; PACKET];
+            mesh.count_hits_packet(&rays, 0.0, &t_max, &mut counts[..len]);
+            for (k, &ray) in rays.iter().enumerate() {
+                assert_facet_and_count(&mesh, data, ray, t_max[k], facets[k], counts[k]);
             }
         }
         // Most rays hit, and the limits leave some short.

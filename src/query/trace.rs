@@ -16,7 +16,10 @@ use super::scene::{Placed, RayScene};
 use crate::accel::PACKET;
 use crate::geometry::Aabb;
 use crate::geometry::cuboid::slab_interval;
-use crate::geometry::mesh::{MeshHit, STREAM};
+use crate::geometry::mesh::{FacetHit, STREAM};
+
+// A counting group is a packet or a stream, as its rays are.
+const _: () = assert!(STREAM == PACKET);
 
 /// Rays per task, and between checks of the cancel flag.
 const CHUNK: usize = 1024;
@@ -31,7 +34,7 @@ const STREAM_BYTES: usize = 8 << 20;
 struct Nearest {
     t: f64,
     mesh: u32,
-    hit: Option<MeshHit>,
+    hit: Option<FacetHit>,
 }
 
 const MISS: Nearest = Nearest {
@@ -58,10 +61,13 @@ impl RayScene {
         let scale = self.bounds().diagonal();
         // Written in place, chunk by chunk: a vector of whole hits would
         // be three times the answer's size to fault in and read back.
+        // Zeros, which the allocator takes from the system as they are
+        // (no pass over them here): each worker faults in and writes its
+        // own chunks, a miss's t and ids included.
         let mut hits = Hits {
-            t: vec![f64::INFINITY; n],
-            mesh_id: vec![-1; n],
-            triangle_id: vec![-1; n],
+            t: vec![0.0; n],
+            mesh_id: vec![0; n],
+            triangle_id: vec![0; n],
             u: vec![0.0; n],
             v: vec![0.0; n],
             normal: vec![0.0; 3 * n],
@@ -92,8 +98,14 @@ impl RayScene {
                         let group = &mut group[..count];
                         self.nearest_group(rays, c * CHUNK + first, group, scale);
                         for (k, near) in group.iter().enumerate() {
-                            let Some(h) = near.hit else { continue };
                             let i = first + k;
+                            let Some(h) = near.hit else {
+                                // u, v and the normal stay zero.
+                                t[i] = f64::INFINITY;
+                                mesh_id[i] = -1;
+                                triangle_id[i] = -1;
+                                continue;
+                            };
                             t[i] = h.t;
                             mesh_id[i] = i64::from(near.mesh);
                             triangle_id[i] = i64::from(h.triangle);
@@ -139,12 +151,6 @@ impl RayScene {
     ) -> Result<Vec<u32>, QueryError> {
         let mut counts = vec![0u32; rays.len()];
         let scale = self.bounds().diagonal();
-        // Groups of rays pay only where a mesh may take streams (ray by
-        // ray, the bunny's camera rays were 5 % faster).
-        let streams = self
-            .meshes
-            .iter()
-            .any(|p| p.mesh.memory_bytes() > STREAM_BYTES);
         options.run(|| {
             counts
                 .par_chunks_mut(CHUNK)
@@ -152,14 +158,6 @@ impl RayScene {
                 .try_for_each(|(c, out)| {
                     if options.cancelled() {
                         return Err(QueryError::Cancelled);
-                    }
-                    if !streams {
-                        for (k, count) in out.iter_mut().enumerate() {
-                            let mut n = 0u32;
-                            self.crossings(rays, c * CHUNK + k, |_| n = n.saturating_add(1));
-                            *count = n;
-                        }
-                        return Ok(());
                     }
                     for (g, group) in out.chunks_mut(STREAM).enumerate() {
                         self.count_group(rays, c * CHUNK + g * STREAM, group, scale);
@@ -235,12 +233,12 @@ impl RayScene {
         let world: [(DVec3, DVec3); PACKET] =
             std::array::from_fn(|k| rays.ray(first + k.min(n - 1)));
         let coherent = coherent(&world[..n], scale);
-        let skip_box = !coherent && self.meshes.len() == 1;
+        // Rays through a scene of one mesh leave the box test to its
+        // tree's root (a ray that misses the box finds no hit there
+        // either; a packet's root test drops such rays as the box test
+        // would).
+        let skip_box = self.meshes.len() == 1;
         for (id, placed) in self.meshes.iter().enumerate() {
-            // Incoherent rays through a scene of one mesh leave the box
-            // test to its tree's root (a ray that misses the box finds no
-            // hit there either); a packet's rays that miss it are better
-            // left out of the packet.
             let (reach, live) =
                 reach_into::<PACKET>(placed, &world[..n], rays.t_min, skip_box, |k| {
                     Some(out[k].t.min(rays.t_max))
@@ -248,17 +246,23 @@ impl RayScene {
             if live == 0 {
                 continue;
             }
-            let local: [(DVec3, DVec3); PACKET] =
-                std::array::from_fn(|k| placed.local(world[k].0, world[k].1));
+            let moved: [(DVec3, DVec3); PACKET];
+            let local = match placed.transform {
+                None => &world,
+                Some(_) => {
+                    moved = std::array::from_fn(|k| placed.local(world[k].0, world[k].1));
+                    &moved
+                }
+            };
             let mut found = [None; PACKET];
             let mesh = &placed.mesh;
             if coherent && live > 1 {
-                mesh.intersect_packet(&local[..n], rays.t_min, &reach[..n], &mut found[..n]);
+                mesh.intersect_facet_packet(&local[..n], rays.t_min, &reach[..n], &mut found[..n]);
             } else if live > 1 && mesh.memory_bytes() > STREAM_BYTES {
-                mesh.intersect_stream(&local[..n], rays.t_min, &reach[..n], &mut found[..n]);
+                mesh.intersect_facet_stream(&local[..n], rays.t_min, &reach[..n], &mut found[..n]);
             } else {
                 for k in (0..n).filter(|&k| reach[k] > f64::NEG_INFINITY) {
-                    found[k] = mesh.intersect(local[k].0, local[k].1, rays.t_min, reach[k]);
+                    found[k] = mesh.intersect_facet(local[k].0, local[k].1, rays.t_min, reach[k]);
                 }
             }
             for (near, hit) in out.iter_mut().zip(found) {
@@ -319,37 +323,42 @@ impl RayScene {
     }
 
     /// The hit counts of rays `first..first + out.len()` (at most
-    /// [`STREAM`]): incoherent ones through a large mesh in a stream,
-    /// otherwise ray by ray (a camera's rays share their cache lines
-    /// already, and were slower in turns).
+    /// [`STREAM`], which is [`PACKET`]): coherent ones as a packet,
+    /// incoherent ones through a large mesh in a stream, otherwise ray by
+    /// ray. Every hit is counted, so the any-hit traversals serve (run to
+    /// their ends), which sort no children.
     fn count_group(&self, rays: &Rays, first: usize, out: &mut [u32], scale: f64) {
         let n = out.len();
-        out.fill(0);
         let world: [(DVec3, DVec3); STREAM] =
             std::array::from_fn(|k| rays.ray(first + k.min(n - 1)));
-        // Asked only of a group into a large mesh.
-        let mut coherent_group = None;
+        let coherent = coherent(&world[..n], scale);
+        // As in `nearest_group`.
+        let skip_box = self.meshes.len() == 1;
         for placed in &self.meshes {
             let (reach, live) =
-                reach_into::<STREAM>(placed, &world[..n], rays.t_min, false, |_| Some(rays.t_max));
+                reach_into::<STREAM>(placed, &world[..n], rays.t_min, skip_box, |_| {
+                    Some(rays.t_max)
+                });
             if live == 0 {
                 continue;
             }
-            let local: [(DVec3, DVec3); STREAM] =
-                std::array::from_fn(|k| placed.local(world[k].0, world[k].1));
+            let moved: [(DVec3, DVec3); STREAM];
+            let local = match placed.transform {
+                None => &world,
+                Some(_) => {
+                    moved = std::array::from_fn(|k| placed.local(world[k].0, world[k].1));
+                    &moved
+                }
+            };
             let mesh = &placed.mesh;
-            if live > 1
-                && mesh.memory_bytes() > STREAM_BYTES
-                && !*coherent_group.get_or_insert_with(|| coherent(&world[..n], scale))
-            {
+            if coherent && live > 1 {
+                mesh.count_hits_packet(&local[..n], rays.t_min, &reach[..n], out);
+            } else if live > 1 && mesh.memory_bytes() > STREAM_BYTES {
                 mesh.count_hits_stream(&local[..n], rays.t_min, &reach[..n], out);
             } else {
                 for k in (0..n).filter(|&k| reach[k] > f64::NEG_INFINITY) {
                     let (o, d) = local[k];
-                    let mut hits = 0u32;
-                    mesh.each_hit(o, d, rays.t_min, reach[k], |_, _| {
-                        hits = hits.saturating_add(1);
-                    });
+                    let hits = mesh.count_hits(o, d, rays.t_min, reach[k]);
                     out[k] = out[k].saturating_add(hits);
                 }
             }
@@ -422,9 +431,14 @@ fn coherent(rays: &[(DVec3, DVec3)], scale: f64) -> bool {
     let Some(&(o0, d0)) = rays.first() else {
         return false;
     };
-    let d0 = d0.normalize();
+    // cos θ > 0.99 as cos θ > 0 and cos² θ > 0.99², without a root or a
+    // division per ray (a camera's groups all ask it).
+    let (near, d0_squared) = ((0.02 * scale).powi(2), d0.length_squared());
     rays.len() >= 3
-        && rays
-            .iter()
-            .all(|&(o, d)| d.normalize().dot(d0) > 0.99 && (o - o0).length() <= 0.02 * scale)
+        && rays.iter().all(|&(o, d)| {
+            let cos = d.dot(d0);
+            cos > 0.0
+                && cos * cos > 0.9801 * d.length_squared() * d0_squared
+                && (o - o0).length_squared() <= near
+        })
 }

@@ -1,0 +1,112 @@
+//! CPU time of `RayScene`'s queries on the rays of `bench/rayqueries.py`,
+//! without Python: for profiling and for comparing two builds in
+//! alternation (each answer's hash is printed, so two builds can be seen
+//! to give the same bits).
+//!
+//! Usage: cargo run --release --example rayquerybench -- DIR [ROUNDS] [FILTER]
+//! DIR holds `MESH.v` (f64 x, y, z per vertex), `MESH.f` (u32 a, b, c per
+//! triangle), `MESH.KIND.o` and `MESH.KIND.d` (f64 origins, directions)
+//! for MESH in bunny, terrain and KIND in coherent, incoherent, as
+//! `bench/rayqueries.py --dump DIR` writes them. FILTER keeps the rows whose
+//! name contains it. Prints one line per row: the name, the CPU seconds of
+//! each round, and the answer's hash.
+
+use std::collections::hash_map::DefaultHasher;
+use std::hash::{Hash, Hasher};
+use std::path::Path;
+
+use prism::query::{QueryOptions, RayScene, Rays};
+
+fn read_f64(path: &Path) -> Vec<f64> {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    bytes
+        .chunks_exact(8)
+        .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
+        .collect()
+}
+
+fn read_u32(path: &Path) -> Vec<u32> {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    bytes
+        .chunks_exact(4)
+        .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
+        .collect()
+}
+
+/// CPU time of the whole process so far, in seconds.
+fn cpu_seconds() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes the timespec it is given.
+    unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut ts) };
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let dir = Path::new(args.get(1).map(String::as_str).unwrap_or("target/rq"));
+    let rounds: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(3);
+    let filter = args.get(3).cloned().unwrap_or_default();
+    for mesh in ["bunny", "terrain"] {
+        // A filter naming the other mesh skips this one's load.
+        if ["bunny", "terrain"]
+            .iter()
+            .any(|m| *m != mesh && filter.contains(m))
+        {
+            continue;
+        }
+        let v = read_f64(&dir.join(format!("{mesh}.v")));
+        let f = read_u32(&dir.join(format!("{mesh}.f")));
+        let mut scene = RayScene::new();
+        scene.add_mesh(&v, &f, None).unwrap();
+        for kind in ["coherent", "incoherent"] {
+            let o = read_f64(&dir.join(format!("{mesh}.{kind}.o")));
+            let d = read_f64(&dir.join(format!("{mesh}.{kind}.d")));
+            let rays = Rays::new(&o, &d, 0.0, f64::INFINITY).unwrap();
+            for query in ["nearest", "any", "count"] {
+                for threads in [1, 2] {
+                    let name = format!("{mesh} {kind} {query} {threads}t");
+                    if !name.contains(&filter) {
+                        continue;
+                    }
+                    let options = QueryOptions {
+                        threads: Some(threads),
+                        cancel: None,
+                    };
+                    let mut times = Vec::new();
+                    let mut hash = 0;
+                    for _ in 0..rounds {
+                        let start = cpu_seconds();
+                        let mut h = DefaultHasher::new();
+                        match query {
+                            "nearest" => {
+                                let hits = scene.intersect(&rays, &options).unwrap();
+                                times.push(cpu_seconds() - start);
+                                for x in [&hits.t, &hits.u, &hits.v, &hits.normal] {
+                                    x.iter().for_each(|x| x.to_bits().hash(&mut h));
+                                }
+                                hits.mesh_id.hash(&mut h);
+                                hits.triangle_id.hash(&mut h);
+                            }
+                            "any" => {
+                                let b = scene.occluded(&rays, &options).unwrap();
+                                times.push(cpu_seconds() - start);
+                                b.hash(&mut h);
+                            }
+                            _ => {
+                                let c = scene.count_intersections(&rays, &options).unwrap();
+                                times.push(cpu_seconds() - start);
+                                c.hash(&mut h);
+                            }
+                        }
+                        hash = h.finish();
+                    }
+                    let times: Vec<String> = times.iter().map(|t| format!("{t:.4}")).collect();
+                    println!("{name}: {} hash {hash:016x}", times.join(" "));
+                }
+            }
+        }
+    }
+}
