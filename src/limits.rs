@@ -39,6 +39,11 @@ pub const MAX_VALUE: f64 = 1e15;
 
 /// Most placements (glTF node instances) one model file may expand to.
 pub const MAX_MODEL_PLACEMENTS: u64 = 1 << 20;
+/// Most animation keys one model file's animation may read: its samplers'
+/// key times and keyed values together (each stored in at most 32 bytes,
+/// so 256 MiB), however many channels share them or accessors alias the
+/// same bytes.
+pub const MAX_ANIMATION_KEYS: u64 = 1 << 23;
 /// Default budget for decoded texture memory per scene, in MiB
 /// (`--texture-memory` raises it).
 pub const DEFAULT_TEXTURE_MIB: u64 = 1024;
@@ -67,7 +72,7 @@ pub fn describe() -> String {
          max_depth 1..={MAX_DEPTH}; adaptive depth 0..={MAX_ADAPTIVE_DEPTH}; shutter_samples 1..={MAX_SHUTTER_SAMPLES} (instants at most {} GiB in all); threads 1..={MAX_THREADS}; animation frames 1..={MAX_FRAMES}; sphere-light samples 1..={MAX_LIGHT_SAMPLES}; coordinates within \
          ±{MAX_COORDINATE:e} and lengths, radii and scale factors in [{MIN_LENGTH:e}, {MAX_COORDINATE:e}] \
          (after transforms); colours, intensities and coefficients at most {MAX_VALUE:e}; \
-         {MAX_MODEL_PLACEMENTS} placements per model file; CSG nested {MAX_CSG_DEPTH} deep; {} MiB of scene text per [[objects]] \
+         {MAX_MODEL_PLACEMENTS} placements and {MAX_ANIMATION_KEYS} animation keys (times and values) per model file; CSG nested {MAX_CSG_DEPTH} deep; {} MiB of scene text per [[objects]] \
          table and outside them; {} MiB per scene file and {} MiB per file it reads; {DEFAULT_TEXTURE_MIB} MiB of textures unless --texture-memory \
          says otherwise.",
         MAX_SHUTTER_BYTES >> 30,

@@ -11,6 +11,7 @@ use std::sync::Arc;
 
 use glam::{DMat4, DVec3};
 use prism::accel::Shape;
+use prism::limits::MAX_ANIMATION_KEYS;
 use prism::scene::LoadOptions;
 use prism::scene::models::load_model;
 use prism::scene::resources::Resources;
@@ -87,7 +88,8 @@ fn square_file(animate: impl FnOnce(&mut Bin) -> Option<Value>, extra: Vec<Value
                      "orthographic": {"xmag": 3, "ymag": 1, "znear": 0.1, "zfar": 100}}],
     });
     if let Some(a) = animation {
-        root["animations"] = json!([a]);
+        // One animation, or the file's list of them.
+        root["animations"] = if a.is_array() { a } else { json!([a]) };
     }
     root["buffers"] = json!([{"byteLength": bin.bytes.len()}]);
     root["bufferViews"] = json!(bin.views);
@@ -218,6 +220,15 @@ fn rotation_slerps_and_normalized_short_keys_are_read() {
     let x = placement(&file, 0.5).transform_vector3(DVec3::X);
     let c = std::f64::consts::FRAC_1_SQRT_2;
     assert!(close(x, DVec3::new(c, 0.0, -c)), "{x}");
+    // A quarter of the way, where slerp and nlerp part: slerp turns 22.5°;
+    // the normalised straight line between the keys only 21.6°, which
+    // moves x̂ by 0.015.
+    let x = placement(&file, 0.25).transform_vector3(DVec3::X);
+    // cos and sin of 22.5°.
+    let (ca, sa) = (0.923_879_532_511_286_7, 0.382_683_432_365_089_8);
+    assert!(close(x, DVec3::new(ca, 0.0, -sa)), "{x}");
+    let nlerp = glam::DQuat::from_xyzw(0.0, 0.25 * c, 0.0, 0.75 + 0.25 * c).normalize();
+    assert!((nlerp * DVec3::X - x).length() > 0.01);
     // The same keys as normalized signed shorts (32767 = 1).
     let shorts: Vec<u8> = [0i16, 0, 0, 32767, 0, 23170, 0, 23170]
         .iter()
@@ -552,5 +563,420 @@ fn weights_channels_and_skins_are_named_as_ignored() {
             .any(|w| w.contains("morph target weight animations (animations[0].channels[0])")),
         "{:?}",
         s.warnings
+    );
+}
+
+/// `bytes` (a GLB written by [`glb`]) with its JSON changed by `edit`.
+fn edited(bytes: &[u8], edit: impl FnOnce(&mut Value)) -> Vec<u8> {
+    let (json_chunk, bin_chunk) = chunks(bytes);
+    let mut root: Value = serde_json::from_slice(json_chunk).unwrap();
+    edit(&mut root);
+    glb(&serde_json::to_vec(&root).unwrap(), bin_chunk)
+}
+
+/// [`square_scene`] built for `frame`.
+fn square_scene_at(dir: &Path, file: &[u8], extra: &str, frame: u32) -> Scene {
+    write(dir, "square.glb", file);
+    let text = format!(
+        "[render]\nwidth = 120\nheight = 40\nspp = 64\nambient = [1, 1, 1]\n{extra}\n\
+         [[objects]]\ntype = \"mesh\"\nfile = \"square.glb\"\n"
+    );
+    write(dir, "scene.toml", text.as_bytes());
+    let options = LoadOptions {
+        frame,
+        ..LoadOptions::default()
+    };
+    Scene::load_with(&dir.join("scene.toml"), &options).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The warnings of a scene placing `file` (the square and its camera).
+fn warnings(file: &[u8]) -> Vec<String> {
+    let dir = tempfile::tempdir().unwrap();
+    square_scene_at(dir.path(), file, "", 0).warnings
+}
+
+/// A scene placing `file`, which must load.
+fn accepted(file: &[u8], extra: &str) -> Scene {
+    let dir = tempfile::tempdir().unwrap();
+    write(dir.path(), "ok.glb", file);
+    let text = format!(
+        "[render]\nwidth = 8\nheight = 8\n{extra}\n[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\n\
+         [[objects]]\ntype = \"mesh\"\nfile = \"ok.glb\"\n"
+    );
+    Scene::from_toml_in(&text, "scene.toml", dir.path()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The square growing from nothing: scale 0 until 1 s, then linearly to
+/// its full size at 2 s.
+fn growing_square() -> Vec<u8> {
+    square_file(
+        channel(
+            "scale",
+            "LINEAR",
+            vec![1.0, 2.0],
+            vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
+            "VEC3",
+        ),
+        vec![camera_node()],
+    )
+}
+
+#[test]
+fn a_node_growing_from_nothing_is_hidden_while_it_has_no_size() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = growing_square();
+    // At 1 fps frame F is F seconds.
+    let timing = "[animation]\nframes = 3\nfps = 1";
+    let film = |s: &Scene| render(s, &s.settings, &()).unwrap().film;
+    // Frames 0 and 1: scale 0, nothing there (the file's pose at 0 s used
+    // to refuse the file at every frame).
+    for frame in [0, 1] {
+        let s = square_scene_at(dir.path(), &file, timing, frame);
+        assert!(s.animated);
+        assert_eq!(s.aggregate.primitives().len(), 0, "frame {frame}");
+        assert!(
+            film(&s).pixels().iter().all(|p| p.x == 0.0),
+            "frame {frame}"
+        );
+    }
+    // Frame 2: the whole square, 20 × 20 px.
+    let s = square_scene_at(dir.path(), &file, timing, 2);
+    let f = film(&s);
+    let lit = f.pixels().iter().filter(|p| p.x > 0.5).count();
+    assert!((390..=410).contains(&lit), "frame 2: {lit} px lit");
+    // Shutter open for frames 0 to 2: hidden for the first half of the
+    // exposure, growing through the second. A point (x, y) is covered
+    // once the scale passes 2·max(|x|, |y|): for (1 − 2·max(|x|, |y|)) / 2
+    // of the exposure; over the square that is a sixth of its area.
+    let s = square_scene_at(
+        dir.path(),
+        &file,
+        "shutter = [0, 2]\nshutter_samples = 64\n[animation]\nframes = 3\nfps = 1",
+        0,
+    );
+    assert_eq!(s.motion.len(), 64);
+    let hidden = s
+        .motion
+        .iter()
+        .filter(|i| i.aggregate.primitives().is_empty())
+        .count();
+    assert_eq!(hidden, 32, "the instants before 1 s");
+    let f = film(&s);
+    let total: f64 = f.pixels().iter().map(|p| p.x).sum();
+    assert!((total / (400.0 / 6.0) - 1.0).abs() < 0.05, "{total}");
+    let row = 20;
+    let y = 1.0 - (f64::from(row) + 0.5) / 20.0;
+    let mut worst: f64 = 0.0;
+    for px in 0..120u32 {
+        let x = (f64::from(px) + 0.5) / 20.0 - 3.0;
+        let covered = ((1.0 - 2.0 * x.abs().max(y.abs())) / 2.0).max(0.0);
+        worst = worst.max((f.get(px, row).x - covered).abs());
+    }
+    eprintln!(
+        "growing square under the shutter: sum {total:.2} (analytic 66.67), worst |measured − analytic| on row {row} = {worst:.4}"
+    );
+    assert!(worst < 0.05, "worst |measured − analytic| = {worst}");
+    assert!(f.get(60, row).x > 0.4 && f.get(60, row).x < 0.55);
+}
+
+#[test]
+fn a_still_zero_scale_stays_an_error() {
+    let still = edited(&square_file(|_| None, vec![]), |root| {
+        root["nodes"][0]["scale"] = json!([0, 0, 0]);
+    });
+    let e = refusal(&still);
+    assert!(
+        e.contains("bad.glb: nodes[0]: its world transform is singular (a zero scale)"),
+        "{e}"
+    );
+}
+
+#[test]
+fn valid_channels_prism_cannot_read_are_named_not_refused() {
+    let file = square_file(
+        |bin| {
+            let input = bin.floats(&[0.0, 1.0], "SCALAR");
+            let output = bin.floats(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0], "VEC3");
+            // All zeros: no bufferView.
+            bin.accessors
+                .push(json!({"componentType": 5126, "count": 2, "type": "VEC3"}));
+            let zeros = bin.accessors.len() - 1;
+            // Key 1 replaced through a sparse accessor.
+            bin.add(&1u32.to_le_bytes(), 1, "SCALAR", 5125);
+            let indices = bin.views.len() - 1;
+            bin.floats(&[2.0, 2.0, 2.0], "VEC3");
+            let values = bin.views.len() - 1;
+            let mut sparse = bin.accessors[output].clone();
+            sparse["sparse"] = json!({"count": 1,
+                "indices": {"bufferView": indices, "componentType": 5125},
+                "values": {"bufferView": values}});
+            bin.accessors.push(sparse);
+            let sparse = bin.accessors.len() - 1;
+            Some(json!({
+                "channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}},
+                             {"sampler": 1, "target": {"node": 0, "path": "scale"}}],
+                "samplers": [{"input": input, "output": zeros}, {"input": input, "output": sparse}]
+            }))
+        },
+        vec![camera_node()],
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let s = square_scene_at(dir.path(), &file, "shutter = [0, 1]", 0);
+    assert!(!s.animated && s.motion.is_empty());
+    assert!(
+        s.warnings.iter().any(|w| w.contains(
+            "animation channels whose keys are in a sparse accessor or one without a bufferView \
+             (animations[0].channels[0], animations[0].channels[1])"
+        )),
+        "{:?}",
+        s.warnings
+    );
+}
+
+/// A file whose first animation has `channels` translation channels on
+/// nodes 1 to `channels` (no mesh), each with its own sampler over the same
+/// 100,000 keys: through the same two accessors, or (`alias`) through
+/// accessors of their own over the same bytes. The nodes are in the scene
+/// unless `outside`.
+fn aliasing_file(channels: usize, alias: bool, outside: bool) -> Vec<u8> {
+    const KEYS: usize = 100_000;
+    let times: Vec<f32> = (0..KEYS).map(|k| k as f32 / 1000.0).collect();
+    let values: Vec<f32> = (0..KEYS)
+        .flat_map(|k| [k as f32 / KEYS as f32, 0.0, 0.0])
+        .collect();
+    let file = square_file(
+        |bin| {
+            let input = bin.floats(&times, "SCALAR");
+            let output = bin.floats(&values, "VEC3");
+            let (mut samplers, mut list) = (Vec::new(), Vec::new());
+            for c in 0..channels {
+                let (i, o) = if alias && c > 0 {
+                    let (a, b) = (bin.accessors[input].clone(), bin.accessors[output].clone());
+                    bin.accessors.push(a);
+                    bin.accessors.push(b);
+                    (bin.accessors.len() - 2, bin.accessors.len() - 1)
+                } else {
+                    (input, output)
+                };
+                samplers.push(json!({"input": i, "output": o}));
+                list.push(json!({"sampler": c, "target": {"node": c + 1, "path": "translation"}}));
+            }
+            Some(json!({"channels": list, "samplers": samplers}))
+        },
+        (0..channels).map(|_| json!({})).collect(),
+    );
+    if outside {
+        edited(&file, |root| root["scenes"] = json!([{"nodes": [0]}]))
+    } else {
+        file
+    }
+}
+
+#[test]
+fn channels_sharing_a_sampler_read_it_once_and_keys_are_bounded() {
+    // 60 channels over one sampler's 200,000 key times and values: 12
+    // million read one by one, past the limit; 200,000 read once.
+    let per = 200_000u64;
+    assert!(60 * per > MAX_ANIMATION_KEYS);
+    let s = accepted(&aliasing_file(60, false, false), "");
+    assert!(s.animated);
+    // The same bytes through accessors of their own count each time.
+    let e = refusal(&aliasing_file(60, true, false));
+    let k = MAX_ANIMATION_KEYS / per;
+    assert!(
+        e.contains(&format!(
+            "bad.glb: animations[0].samplers[{k}]: its 100000 key times and 100000 values bring \
+             the animation's keys to {}, more than the limit of {MAX_ANIMATION_KEYS}",
+            (k + 1) * per
+        )),
+        "{e}"
+    );
+    // On nodes outside the scene they are not read at all.
+    let s = accepted(&aliasing_file(60, true, true), "shutter = [0, 1]");
+    assert!(!s.animated && s.motion.is_empty());
+}
+
+#[test]
+fn channels_on_nodes_outside_the_scene_key_nothing() {
+    // Node 1 moves, but the scene's roots are the square and the camera.
+    let file = edited(
+        &square_file(
+            |bin| {
+                let input = bin.floats(&[0.0, 1.0], "SCALAR");
+                let output = bin.floats(&[0.0, 0.0, 0.0, 5.0, 0.0, 0.0], "VEC3");
+                Some(json!({
+                    "channels": [{"sampler": 0, "target": {"node": 1, "path": "translation"}}],
+                    "samplers": [{"input": input, "output": output}]
+                }))
+            },
+            vec![json!({"name": "Elsewhere"}), camera_node()],
+        ),
+        |root| root["scenes"] = json!([{"nodes": [0, 2]}]),
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let s = square_scene_at(
+        dir.path(),
+        &file,
+        "shutter = [0, 1]\nshutter_samples = 256",
+        0,
+    );
+    assert!(!s.animated, "nothing the scene reaches moves");
+    assert!(s.motion.is_empty(), "{} instants built", s.motion.len());
+}
+
+#[test]
+fn only_the_first_animation_plays() {
+    let h = std::f32::consts::FRAC_1_SQRT_2;
+    let file = square_file(
+        |bin| {
+            let input = bin.floats(&[0.0, 1.0], "SCALAR");
+            let moves = bin.floats(&[0.0, 0.0, 0.0, 2.0, 0.0, 0.0], "VEC3");
+            let turns = bin.floats(&[0.0, 0.0, 0.0, 1.0, 0.0, h, 0.0, h], "VEC4");
+            Some(json!([
+                {"channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}}],
+                 "samplers": [{"input": input, "output": moves}]},
+                {"channels": [{"sampler": 0, "target": {"node": 0, "path": "rotation"}}],
+                 "samplers": [{"input": input, "output": turns}]}
+            ]))
+        },
+        vec![camera_node()],
+    );
+    let m = placement(&file, 1.0);
+    assert_eq!(m.w_axis.truncate(), DVec3::new(2.0, 0.0, 0.0));
+    assert_eq!(
+        m.transform_vector3(DVec3::X),
+        DVec3::X,
+        "animations[1] turned it"
+    );
+    assert!(
+        warnings(&file).iter().any(|w| w.contains(
+            "animations after the first (Prism plays animations[0], the clip a viewer shows) \
+             (animations[1])"
+        )),
+        "{:?}",
+        warnings(&file)
+    );
+}
+
+#[test]
+fn a_cubic_rotation_through_zero_holds_the_nearer_key() {
+    // Keys q and −q (half a turn about y, written twice) with zero
+    // tangents: the spline passes through the zero quaternion at 0.5 s.
+    let values = vec![
+        0., 0., 0., 0., 0., 1., 0., 0., 0., 0., 0., 0., // key 0: in, value, out
+        0., 0., 0., 0., 0., -1., 0., 0., 0., 0., 0., 0., // key 1
+    ];
+    let file = square_file(
+        channel("rotation", "CUBICSPLINE", vec![0.0, 1.0], values, "VEC4"),
+        vec![camera_node()],
+    );
+    for t in [0.25, 0.5, 0.75] {
+        let x = placement(&file, t).transform_vector3(DVec3::X);
+        assert!(close(x, -DVec3::X), "t = {t}: {x}");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let s = square_scene_at(dir.path(), &file, "[animation]\nframes = 3\nfps = 2", 1);
+    assert_eq!(s.aggregate.primitives().len(), 1);
+}
+
+#[test]
+fn a_channel_on_a_matrix_node_is_refused_in_one_sentence() {
+    let file = square_file(
+        |bin| {
+            let input = bin.floats(&[0.0], "SCALAR");
+            let output = bin.floats(&[1.0, 0.0, 0.0], "VEC3");
+            Some(json!({
+                "channels": [{"sampler": 0, "target": {"node": 1, "path": "translation"}}],
+                "samplers": [{"input": input, "output": output}]
+            }))
+        },
+        vec![json!({"matrix": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]})],
+    );
+    let e = refusal(&file);
+    assert!(
+        e.contains(
+            "bad.glb: animations[0].channels[0].target.node: nodes[1] has a `matrix`, which \
+             animations cannot drive (the glTF specification animates translation, rotation and \
+             scale only)"
+        ),
+        "{e}"
+    );
+    assert!(!e.contains("  "), "{e}");
+}
+
+#[test]
+fn a_second_channel_on_a_property_is_named_and_the_first_plays() {
+    let file = square_file(
+        |bin| {
+            let input = bin.floats(&[0.0, 1.0], "SCALAR");
+            let first = bin.floats(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0], "VEC3");
+            let second = bin.floats(&[0.0, 0.0, 0.0, 0.0, 9.0, 0.0], "VEC3");
+            Some(json!({
+                "channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}},
+                             {"sampler": 1, "target": {"node": 0, "path": "translation"}}],
+                "samplers": [{"input": input, "output": first}, {"input": input, "output": second}]
+            }))
+        },
+        vec![camera_node()],
+    );
+    assert_eq!(placement(&file, 1.0).w_axis.truncate(), DVec3::X);
+    assert!(
+        warnings(&file).iter().any(|w| w.contains(
+            "animation channels on a property another channel already drives \
+             (animations[0].channels[1])"
+        )),
+        "{:?}",
+        warnings(&file)
+    );
+}
+
+#[test]
+fn byte_and_unsigned_rotation_keys_are_read_normalized() {
+    // Identity to 90° about y as BYTE (127 = 1), UNSIGNED_BYTE (255 = 1)
+    // and UNSIGNED_SHORT (65535 = 1) keys: both components of the turn
+    // equal, so normalising gives the turn exactly.
+    let bytes = |v: &[i64], size: usize| -> Vec<u8> {
+        v.iter()
+            .flat_map(|&x| x.to_le_bytes()[..size].to_vec())
+            .collect()
+    };
+    for (raw, component) in [
+        (bytes(&[0, 0, 0, 127, 0, 90, 0, 90], 1), 5120),
+        (bytes(&[0, 0, 0, 255, 0, 180, 0, 180], 1), 5121),
+        (bytes(&[0, 0, 0, 65535, 0, 46341, 0, 46341], 2), 5123),
+    ] {
+        let file = square_file(
+            |bin| {
+                let input = bin.floats(&[0.0, 1.0], "SCALAR");
+                let output = bin.add(&raw, 2, "VEC4", component);
+                bin.accessors[output]["normalized"] = json!(true);
+                Some(json!({
+                    "channels": [{"sampler": 0, "target": {"node": 0, "path": "rotation"}}],
+                    "samplers": [{"input": input, "output": output}]
+                }))
+            },
+            vec![],
+        );
+        assert_eq!(
+            placement(&file, 0.0).transform_vector3(DVec3::X),
+            DVec3::X,
+            "{component}"
+        );
+        let x = placement(&file, 1.0).transform_vector3(DVec3::X);
+        assert!(close(x, DVec3::new(0.0, 0.0, -1.0)), "{component}: {x}");
+    }
+}
+
+#[test]
+fn a_skin_is_named_as_ignored() {
+    let file = edited(&square_file(|_| None, vec![camera_node()]), |root| {
+        root["skins"] = json!([{"joints": [0]}]);
+    });
+    assert!(
+        warnings(&file)
+            .iter()
+            .any(|w| w.contains("Prism ignores what it cannot render of this file: skins")),
+        "{:?}",
+        warnings(&file)
     );
 }

@@ -33,7 +33,7 @@ use super::keyframes::{Interpolation, Sampler};
 use super::{Model, ModelCamera, ModelError, ModelProjection, Pose};
 use crate::geometry::MeshData;
 use crate::lights::{Light, LightShape, SpotCone};
-use crate::limits::{MAX_MODEL_PLACEMENTS, MAX_VALUE};
+use crate::limits::{MAX_ANIMATION_KEYS, MAX_MODEL_PLACEMENTS, MAX_VALUE};
 use crate::scene::resources::{Resources, TextureKey};
 use crate::shading::texture::{Sampling, Wrap, texture_transform};
 use crate::shading::{Fresnel, Highlight, Material, Texture};
@@ -143,33 +143,49 @@ pub fn load(path: &Path, res: &mut Resources) -> Result<Model, ModelError> {
         )));
     }
 
-    let animations = reader.animations().map_err(err)?;
+    // The nodes the scene reaches, each once, in the order the walk
+    // first meets them.
+    let reachable = graph.reachable(&roots);
+    let animations = reader.animations(&reachable.1).map_err(err)?;
     let mut meshes = Vec::new();
     // glTF mesh index → index into `meshes` (`None`: no triangles): a
     // mesh used by several nodes (or by a node placed many times) is read
-    // and stored once.
+    // and stored once. Every reachable node's mesh is read whatever its
+    // pose, so a mesh first met while an animation hides it (a zero
+    // scale) has its slot at the instants it shows.
     let mut mesh_slots: HashMap<usize, Option<usize>> = HashMap::new();
-    let pose = walk(
+    for &n in &reachable.0 {
+        let Some(mesh) = root.nodes[n].mesh else {
+            continue;
+        };
+        let mesh = mesh.value();
+        if mesh_slots.contains_key(&mesh) {
+            continue;
+        }
+        let data = reader
+            .mesh(mesh, n, default_slot, &mut needs_default)
+            .map_err(err)?;
+        // Only lines or points: skipped (already warned about).
+        let slot = (!data.triangles.is_empty()).then(|| {
+            meshes.push(data);
+            meshes.len() - 1
+        });
+        mesh_slots.insert(mesh, slot);
+    }
+    let pose = match walk(
         &mut reader,
         &roots,
         &graph.children,
         &animations,
         0.0,
-        |reader, n, mesh| {
-            if let Some(&slot) = mesh_slots.get(&mesh) {
-                return Ok(slot);
-            }
-            let data = reader.mesh(mesh, n, default_slot, &mut needs_default)?;
-            // Only lines or points: skipped (already warned about).
-            let slot = (!data.triangles.is_empty()).then(|| {
-                meshes.push(data);
-                meshes.len() - 1
-            });
-            mesh_slots.insert(mesh, slot);
-            Ok(slot)
-        },
-    )
-    .map_err(err)?;
+        &mesh_slots,
+    ) {
+        Ok(pose) => pose,
+        // An animated file is posed again at each frame it is built for,
+        // which reports what is wrong there; at 0 s it may not be shown.
+        Err(_) if !animations.is_empty() => Pose::default(),
+        Err(e) => return Err(err(e)),
+    };
     let mut model = Model {
         meshes,
         placements: pose.placements,
@@ -275,7 +291,7 @@ impl Motion {
             &self.children,
             &self.animations,
             seconds,
-            |_, _, mesh| Ok(self.mesh_slots.get(&mesh).copied().flatten()),
+            &self.mesh_slots,
         )
         .map_err(|e| ModelError::new(&self.file, None, e))
     }
@@ -283,17 +299,19 @@ impl Motion {
 
 /// The scene's node instances at `seconds`: each node's world transform
 /// (its animated channels played at that time), its camera and light
-/// placed, and its mesh's slot (`mesh_slot(reader, node, mesh)`) placed.
-/// Depth first in node order (children pushed in reverse), so "the first
-/// camera" is the first one met reading the scene's nodes in order, as
-/// Blender lists them.
-fn walk<'a>(
-    reader: &mut Reader<'a>,
+/// placed, and its mesh (its slot in `mesh_slots`) placed. Depth first in
+/// node order (children pushed in reverse), so "the first camera" is the
+/// first one met reading the scene's nodes in order, as Blender lists
+/// them. A meshed node that an animation moves (its own channels or an
+/// ancestor's) and whose world transform is singular at `seconds` (a scale
+/// animated to zero) is hidden at that instant; a still one is an error.
+fn walk(
+    reader: &mut Reader<'_>,
     roots: &[usize],
     children: &[Vec<usize>],
     animations: &HashMap<usize, NodeAnimation>,
     seconds: f64,
-    mut mesh_slot: impl FnMut(&mut Reader<'a>, usize, usize) -> Result<Option<usize>, String>,
+    mesh_slots: &HashMap<usize, Option<usize>>,
 ) -> Result<Pose, String> {
     let root = reader.root;
     let when = if animations.is_empty() {
@@ -302,13 +320,17 @@ fn walk<'a>(
         format!(" at {seconds} s of its animation")
     };
     let mut pose = Pose::default();
-    let mut stack: Vec<(usize, DMat4)> =
-        roots.iter().rev().map(|&n| (n, DMat4::IDENTITY)).collect();
-    while let Some((n, parent)) = stack.pop() {
+    // (node, its parent's world transform, whether an ancestor is animated)
+    let mut stack: Vec<(usize, DMat4, bool)> = roots
+        .iter()
+        .rev()
+        .map(|&n| (n, DMat4::IDENTITY, false))
+        .collect();
+    while let Some((n, parent, moved)) = stack.pop() {
         let node = &root.nodes[n];
-        let local = match animations.get(&n) {
-            Some(a) => a.local_at(node, seconds),
-            None => local_transform(node),
+        let (local, moving) = match animations.get(&n) {
+            Some(a) => (a.local_at(node, seconds), true),
+            None => (local_transform(node), moved),
         };
         let world = parent * local;
         if !world.is_finite() {
@@ -316,7 +338,7 @@ fn walk<'a>(
                 "nodes[{n}]: its world transform{when} overflows (not finite)"
             ));
         }
-        stack.extend(children[n].iter().rev().map(|&c| (c, world)));
+        stack.extend(children[n].iter().rev().map(|&c| (c, world, moving)));
         if let Some(c) = node.camera
             && let Some(camera) = reader.camera(n, c.value(), &world)?
         {
@@ -332,11 +354,15 @@ fn walk<'a>(
         }
         let Some(mesh) = node.mesh else { continue };
         if DMat3::from_mat4(world).determinant().abs() < 1e-12 {
+            if moving {
+                // Shrunk to nothing at this instant: not there.
+                continue;
+            }
             return Err(format!(
-                "nodes[{n}]: its world transform{when} is singular (a zero scale)"
+                "nodes[{n}]: its world transform is singular (a zero scale)"
             ));
         }
-        if let Some(index) = mesh_slot(reader, n, mesh.value())? {
+        if let Some(&Some(index)) = mesh_slots.get(&mesh.value()) {
             pose.placements.push((index, world));
         }
     }
@@ -347,8 +373,9 @@ fn walk<'a>(
 /// and scale, if animated.
 #[derive(Debug, Default)]
 struct NodeAnimation {
-    /// Translation, rotation, scale.
-    channels: [Option<Sampler>; 3],
+    /// Translation, rotation, scale (a sampler several channels use is
+    /// read and stored once).
+    channels: [Option<Arc<Sampler>>; 3],
 }
 
 impl NodeAnimation {
@@ -632,6 +659,26 @@ impl NodeGraph {
         Ok(roots
             .iter()
             .fold(0u64, |s, &r| s.saturating_add(count[r].unwrap_or(0))))
+    }
+}
+
+impl NodeGraph {
+    /// The nodes reachable from `roots` (which exist: see
+    /// [`instances`](Self::instances)), each once, in the order a depth
+    /// first walk in node order first meets them; and, by node, whether it
+    /// is reachable.
+    fn reachable(&self, roots: &[usize]) -> (Vec<usize>, Vec<bool>) {
+        let mut seen = vec![false; self.children.len()];
+        let mut order = Vec::new();
+        let mut stack: Vec<usize> = roots.iter().rev().copied().collect();
+        while let Some(n) = stack.pop() {
+            if std::mem::replace(&mut seen[n], true) {
+                continue;
+            }
+            order.push(n);
+            stack.extend(self.children[n].iter().rev());
+        }
+        (order, seen)
     }
 }
 
@@ -1275,73 +1322,133 @@ impl<'a> Reader<'a> {
         }
     }
 
-    /// The channels of every animation that drive a node's translation,
-    /// rotation or scale, by node, each sampler read and checked (times
-    /// finite and increasing, as many values as its interpolation needs,
-    /// every value finite); morph target weights and channels of unknown
-    /// paths are noted as ignored, and so is a second channel on a
-    /// property another already drives (the first in file order plays).
-    fn animations(&mut self) -> Result<HashMap<usize, NodeAnimation>, String> {
+    /// The channels of the file's first animation (the clip a viewer plays:
+    /// the others are named as ignored) that drive the translation,
+    /// rotation or scale of a node in `reachable`, by node. Each sampler is
+    /// read and checked once however many channels use it (times finite
+    /// and increasing, as many values as its interpolation needs, every
+    /// value finite), and the keys read in all are bounded by
+    /// [`MAX_ANIMATION_KEYS`]. Morph target weights, channels of unknown
+    /// paths and channels whose keys lie in accessors Prism does not read
+    /// (sparse, or without a bufferView) are noted as ignored, and so is a
+    /// second channel on a property another already drives (the first in
+    /// file order plays); channels on nodes the scene does not reach are
+    /// not read.
+    fn animations(&mut self, reachable: &[bool]) -> Result<HashMap<usize, NodeAnimation>, String> {
         use json::animation::{Interpolation as Json, Property};
         let root = self.root;
         let mut out: HashMap<usize, NodeAnimation> = HashMap::new();
-        for (a, animation) in root.animations.iter().enumerate() {
-            for (c, channel) in animation.channels.iter().enumerate() {
-                let at = format!("animations[{a}].channels[{c}]");
-                let (slot, rotation) = match channel.target.path {
-                    Checked::Valid(Property::Translation) => (0, false),
-                    Checked::Valid(Property::Rotation) => (1, true),
-                    Checked::Valid(Property::Scale) => (2, false),
-                    Checked::Valid(Property::MorphTargetWeights) => {
-                        self.ignore("morph target weight animations", &at);
-                        continue;
-                    }
-                    Checked::Invalid => {
-                        self.ignore("animation channels of unknown paths", &at);
-                        continue;
-                    }
-                };
-                let n = channel.target.node.value();
-                let node = lookup(&root.nodes, n, &format!("{at}.target.node"), "node")?;
-                if node.matrix.is_some() {
+        for a in 1..root.animations.len() {
+            self.ignore(
+                "animations after the first (Prism plays animations[0], the clip a viewer shows)",
+                &format!("animations[{a}]"),
+            );
+        }
+        let Some(animation) = root.animations.first() else {
+            return Ok(out);
+        };
+        // (input accessor, output accessor, interpolation, rotation) → the
+        // sampler those keys make.
+        let mut read: HashMap<(usize, usize, Interpolation, bool), Arc<Sampler>> = HashMap::new();
+        let mut keys: u64 = 0;
+        for (c, channel) in animation.channels.iter().enumerate() {
+            let at = format!("animations[0].channels[{c}]");
+            let (slot, rotation) = match channel.target.path {
+                Checked::Valid(Property::Translation) => (0, false),
+                Checked::Valid(Property::Rotation) => (1, true),
+                Checked::Valid(Property::Scale) => (2, false),
+                Checked::Valid(Property::MorphTargetWeights) => {
+                    self.ignore("morph target weight animations", &at);
+                    continue;
+                }
+                Checked::Invalid => {
+                    self.ignore("animation channels of unknown paths", &at);
+                    continue;
+                }
+            };
+            let n = channel.target.node.value();
+            let node = lookup(&root.nodes, n, &format!("{at}.target.node"), "node")?;
+            if !reachable.get(n).copied().unwrap_or(false) {
+                // Outside the scene: it moves nothing Prism renders.
+                continue;
+            }
+            if node.matrix.is_some() {
+                return Err(format!(
+                    "{at}.target.node: nodes[{n}] has a `matrix`, which animations cannot \
+                     drive (the glTF specification animates translation, rotation and scale \
+                     only)"
+                ));
+            }
+            let s = channel.sampler.value();
+            let sampler = lookup(&animation.samplers, s, &format!("{at}.sampler"), "sampler")?;
+            let sat = format!("animations[0].samplers[{s}]");
+            let interpolation = match sampler.interpolation {
+                Checked::Valid(Json::Linear) => Interpolation::Linear,
+                Checked::Valid(Json::Step) => Interpolation::Step,
+                Checked::Valid(Json::CubicSpline) => Interpolation::CubicSpline,
+                Checked::Invalid => {
                     return Err(format!(
-                        "{at}.target.node: nodes[{n}] has a `matrix`, which animations cannot                          drive (the glTF specification animates translation, rotation and scale                          only)"
+                        "{sat}.interpolation: unknown; expected LINEAR, STEP or CUBICSPLINE"
                     ));
                 }
-                let s = channel.sampler.value();
-                let sampler = lookup(&animation.samplers, s, &format!("{at}.sampler"), "sampler")?;
-                let sat = format!("animations[{a}].samplers[{s}]");
-                let interpolation = match sampler.interpolation {
-                    Checked::Valid(Json::Linear) => Interpolation::Linear,
-                    Checked::Valid(Json::Step) => Interpolation::Step,
-                    Checked::Valid(Json::CubicSpline) => Interpolation::CubicSpline,
-                    Checked::Invalid => {
+            };
+            let (i, o) = (sampler.input.value(), sampler.output.value());
+            let mut unsupported = false;
+            for (index, end) in [(i, "input"), (o, "output")] {
+                let accessor = lookup(&root.accessors, index, &format!("{sat}.{end}"), "accessor")?;
+                unsupported |= accessor.sparse.is_some() || accessor.buffer_view.is_none();
+            }
+            if unsupported {
+                self.ignore(
+                    "animation channels whose keys are in a sparse accessor or one without a \
+                     bufferView",
+                    &at,
+                );
+                continue;
+            }
+            let key = (i, o, interpolation, rotation);
+            let sampler = match read.get(&key) {
+                Some(sampler) => sampler.clone(),
+                None => {
+                    let input = self.elements(sampler.input, &format!("{sat}.input"), &TIMES)?;
+                    let expect = if rotation { &ROTATIONS } else { &VECTORS };
+                    let output = self.elements(sampler.output, &format!("{sat}.output"), expect)?;
+                    // Counted before anything is read: accessors may
+                    // all alias the same bytes.
+                    keys = keys
+                        .saturating_add(input.count as u64)
+                        .saturating_add(output.count as u64);
+                    if keys > MAX_ANIMATION_KEYS {
                         return Err(format!(
-                            "{sat}.interpolation: unknown; expected LINEAR, STEP or CUBICSPLINE"
+                            "{sat}: its {} key times and {} values bring the animation's keys \
+                             to {keys}, more than the limit of {MAX_ANIMATION_KEYS} (key times \
+                             and values of all its samplers together)",
+                            input.count, output.count
                         ));
                     }
-                };
-                let input = self.elements(sampler.input, &format!("{sat}.input"), &TIMES)?;
-                let times = (0..input.count).map(|i| input.get(i, 0)).collect();
-                let expect = if rotation { &ROTATIONS } else { &VECTORS };
-                let output = self.elements(sampler.output, &format!("{sat}.output"), expect)?;
-                let values = (0..output.count)
-                    .map(|i| {
-                        let w = if rotation { output.get(i, 3) } else { 0.0 };
-                        DVec4::new(output.get(i, 0), output.get(i, 1), output.get(i, 2), w)
-                    })
-                    .collect();
-                let sampler = Sampler::new(times, values, interpolation, rotation)
-                    .map_err(|e| format!("{sat}.{e}"))?;
-                let channels = &mut out.entry(n).or_default().channels;
-                if channels[slot].is_some() {
-                    self.ignore(
-                        "animation channels on a property another channel already drives",
-                        &at,
+                    let times = (0..input.count).map(|i| input.get(i, 0)).collect();
+                    let values = (0..output.count)
+                        .map(|i| {
+                            let w = if rotation { output.get(i, 3) } else { 0.0 };
+                            DVec4::new(output.get(i, 0), output.get(i, 1), output.get(i, 2), w)
+                        })
+                        .collect();
+                    let sampler = Arc::new(
+                        Sampler::new(times, values, interpolation, rotation)
+                            .map_err(|e| format!("{sat}.{e}"))?,
                     );
-                } else {
-                    channels[slot] = Some(sampler);
+                    read.insert(key, sampler.clone());
+                    sampler
                 }
+            };
+            let channels = &mut out.entry(n).or_default().channels;
+            if channels[slot].is_some() {
+                self.ignore(
+                    "animation channels on a property another channel already drives",
+                    &at,
+                );
+            } else {
+                channels[slot] = Some(sampler);
             }
         }
         Ok(out)

@@ -6,7 +6,7 @@
 use glam::{DQuat, DVec4};
 
 /// How a sampler moves between its keys.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Interpolation {
     /// The key's value until the next key.
     Step,
@@ -94,18 +94,26 @@ impl Sampler {
         }
     }
 
-    /// The value at time `t` seconds (a rotation normalised).
+    /// The value at time `t` seconds (a rotation normalised). A cubic
+    /// spline between rotation keys q and −q (the same rotation) may pass
+    /// through the zero quaternion, which is no rotation: there, and
+    /// wherever its length is too small to normalise, the nearer key's
+    /// rotation holds.
     pub fn at(&self, t: f64) -> DVec4 {
         let last = self.times.len() - 1;
+        // The key nearest to `t`, for a rotation that cannot be normalised.
+        let mut nearer = 0;
         let v = if t.is_nan() || t <= self.times[0] {
             self.key(0)
         } else if t >= self.times[last] {
+            nearer = last;
             self.key(last)
         } else {
             // times[k] <= t < times[k + 1]
             let k = self.times.partition_point(|&x| x <= t) - 1;
             let (t0, t1) = (self.times[k], self.times[k + 1]);
             let s = (t - t0) / (t1 - t0);
+            nearer = if s < 0.5 { k } else { k + 1 };
             match self.interpolation {
                 Interpolation::Step => self.key(k),
                 Interpolation::Linear if self.rotation => slerp(self.key(k), self.key(k + 1), s),
@@ -124,9 +132,20 @@ impl Sampler {
                 }
             }
         };
-        if self.rotation { v.normalize() } else { v }
+        if !self.rotation {
+            v
+        } else if v.length_squared() > ROTATION_FLOOR && v.is_finite() {
+            v.normalize()
+        } else {
+            self.key(nearer).normalize()
+        }
     }
 }
+
+/// The squared length below which an interpolated rotation is taken as
+/// the zero quaternion (no rotation to normalise): far below any rounding
+/// of unit keys, far above f64's underflow.
+const ROTATION_FLOOR: f64 = 1e-200;
 
 /// Spherical linear interpolation from rotation `a` to `b` along the
 /// shorter arc (the specification's slerp), as quaternions (x, y, z, w).
@@ -289,6 +308,23 @@ mod tests {
         for t in [0.1, 0.3, 0.5, 0.9] {
             assert!(close(s.at(t), v(2.0 * t, 0.0, 0.0)), "t = {t}");
         }
+    }
+
+    #[test]
+    fn a_cubic_rotation_through_zero_takes_the_nearer_key() {
+        // Keys q and −q (the same half turn about y) with zero tangents:
+        // the spline is q·(4s³ − 6s² + 1), exactly zero at s = 1/2.
+        let q = DVec4::new(0.0, 1.0, 0.0, 0.0);
+        let s = Sampler::new(
+            vec![0.0, 1.0],
+            vec![DVec4::ZERO, q, DVec4::ZERO, DVec4::ZERO, -q, DVec4::ZERO],
+            Interpolation::CubicSpline,
+            true,
+        )
+        .unwrap();
+        assert_eq!(s.at(0.5), -q, "the nearer key at the half way point");
+        assert_eq!(s.at(0.25), q);
+        assert!(s.at(0.4).is_finite() && (s.at(0.4) - q).length() < 1e-12);
     }
 
     #[test]
