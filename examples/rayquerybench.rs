@@ -64,7 +64,11 @@ fn main() {
         for kind in ["coherent", "incoherent"] {
             let o = read_f64(&dir.join(format!("{mesh}.{kind}.o")));
             let d = read_f64(&dir.join(format!("{mesh}.{kind}.d")));
+            let start = cpu_seconds();
             let rays = Rays::new(&o, &d, 0.0, f64::INFINITY).unwrap();
+            if filter.is_empty() || "check".contains(&filter) {
+                println!("{mesh} {kind} check: {:.4}", cpu_seconds() - start);
+            }
             for query in ["nearest", "any", "count"] {
                 for threads in [1, 2] {
                     let name = format!("{mesh} {kind} {query} {threads}t");

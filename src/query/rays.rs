@@ -42,9 +42,17 @@ impl<'a> Rays<'a> {
         }
         finite_rows("origins", origins)?;
         finite_rows("directions", directions)?;
-        if let Some(k) = directions
+        // A pass without an early exit first, which the compiler turns
+        // into vector code; the row is looked for only when there is one.
+        let zero = |d: &[f64]| {
+            (d[0].abs() < MIN_LENGTH) & (d[1].abs() < MIN_LENGTH) & (d[2].abs() < MIN_LENGTH)
+        };
+        let any_zero = directions
             .chunks_exact(3)
-            .position(|d| d.iter().all(|c| c.abs() < MIN_LENGTH))
+            .fold(false, |seen, d| seen | zero(d));
+        if let Some(k) = any_zero
+            .then(|| directions.chunks_exact(3).position(zero))
+            .flatten()
         {
             return Err(QueryError::invalid(
                 "directions",
@@ -118,6 +126,14 @@ fn rows(name: &'static str, values: &[f64]) -> Result<usize, QueryError> {
 }
 
 fn finite_rows(name: &'static str, values: &[f64]) -> Result<(), QueryError> {
+    // A pass without an early exit first (vector code); NaN fails the
+    // comparison as infinity does.
+    if values
+        .iter()
+        .fold(true, |ok, v| ok & (v.abs() <= MAX_COORDINATE))
+    {
+        return Ok(());
+    }
     match values
         .iter()
         .position(|v| !v.is_finite() || v.abs() > MAX_COORDINATE)

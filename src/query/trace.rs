@@ -286,7 +286,7 @@ impl RayScene {
             std::array::from_fn(|k| rays.ray(first + k.min(n - 1)));
         let coherent = coherent(&world[..n], scale);
         // As in `nearest_group`.
-        let skip_box = !coherent && self.meshes.len() == 1;
+        let skip_box = self.meshes.len() == 1;
         for placed in &self.meshes {
             // Rays already blocked are done.
             let (reach, live) =
@@ -296,8 +296,14 @@ impl RayScene {
             if live == 0 {
                 continue;
             }
-            let local: [(DVec3, DVec3); PACKET] =
-                std::array::from_fn(|k| placed.local(world[k].0, world[k].1));
+            let moved: [(DVec3, DVec3); PACKET];
+            let local = match placed.transform {
+                None => &world,
+                Some(_) => {
+                    moved = std::array::from_fn(|k| placed.local(world[k].0, world[k].1));
+                    &moved
+                }
+            };
             if coherent && live > 1 {
                 let mask = placed
                     .mesh
