@@ -9,11 +9,13 @@
 //! for MESH in bunny, terrain and KIND in coherent, incoherent, as
 //! `bench/rayqueries.py --dump DIR` writes them. FILTER keeps the rows whose
 //! name contains it. Prints one line per row: the name, the CPU seconds of
-//! each round, and the answer's hash.
+//! each round (the rays' check, as `RayScene`'s Python methods make it,
+//! and the query), the wall seconds of each round, and the answer's hash.
 
 use std::collections::hash_map::DefaultHasher;
 use std::hash::{Hash, Hasher};
 use std::path::Path;
+use std::time::Instant;
 
 use prism::query::{QueryOptions, RayScene, Rays};
 
@@ -44,6 +46,12 @@ fn cpu_seconds() -> f64 {
     ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
 }
 
+/// The batch as `RayScene`'s Python methods make it (its coordinates
+/// checked by the query).
+fn batch<'a>(o: &'a [f64], d: &'a [f64]) -> Rays<'a> {
+    Rays::deferred(o, d, 0.0, f64::INFINITY).unwrap()
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let dir = Path::new(args.get(1).map(String::as_str).unwrap_or("target/rq"));
@@ -65,7 +73,7 @@ fn main() {
             let o = read_f64(&dir.join(format!("{mesh}.{kind}.o")));
             let d = read_f64(&dir.join(format!("{mesh}.{kind}.d")));
             let start = cpu_seconds();
-            let rays = Rays::new(&o, &d, 0.0, f64::INFINITY).unwrap();
+            Rays::new(&o, &d, 0.0, f64::INFINITY).unwrap();
             if filter.is_empty() || "check".contains(&filter) {
                 println!("{mesh} {kind} check: {:.4}", cpu_seconds() - start);
             }
@@ -80,14 +88,18 @@ fn main() {
                         cancel: None,
                     };
                     let mut times = Vec::new();
+                    let mut walls = Vec::new();
                     let mut hash = 0;
                     for _ in 0..rounds {
                         let start = cpu_seconds();
+                        let wall = Instant::now();
+                        let rays = batch(&o, &d);
                         let mut h = DefaultHasher::new();
                         match query {
                             "nearest" => {
                                 let hits = scene.intersect(&rays, &options).unwrap();
                                 times.push(cpu_seconds() - start);
+                                walls.push(wall.elapsed().as_secs_f64());
                                 for x in [&hits.t, &hits.u, &hits.v, &hits.normal] {
                                     x.iter().for_each(|x| x.to_bits().hash(&mut h));
                                 }
@@ -97,18 +109,29 @@ fn main() {
                             "any" => {
                                 let b = scene.occluded(&rays, &options).unwrap();
                                 times.push(cpu_seconds() - start);
+                                walls.push(wall.elapsed().as_secs_f64());
                                 b.hash(&mut h);
                             }
                             _ => {
                                 let c = scene.count_intersections(&rays, &options).unwrap();
                                 times.push(cpu_seconds() - start);
+                                walls.push(wall.elapsed().as_secs_f64());
                                 c.hash(&mut h);
                             }
                         }
                         hash = h.finish();
                     }
-                    let times: Vec<String> = times.iter().map(|t| format!("{t:.4}")).collect();
-                    println!("{name}: {} hash {hash:016x}", times.join(" "));
+                    let show = |v: &[f64]| {
+                        v.iter()
+                            .map(|t| format!("{t:.4}"))
+                            .collect::<Vec<_>>()
+                            .join(" ")
+                    };
+                    println!(
+                        "{name}: cpu {} wall {} hash {hash:016x}",
+                        show(&times),
+                        show(&walls)
+                    );
                 }
             }
         }

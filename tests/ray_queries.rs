@@ -864,6 +864,57 @@ fn bad_arguments_name_themselves() {
     assert_eq!((hits.t[0], hits.triangle_id[0]), (1.0, 0));
 }
 
+/// A deferred batch's coordinates are checked by the query, on its workers,
+/// with the error `Rays::new` gives (the first bad row; origins, then
+/// directions, then a zero direction), and its answers are the same.
+#[test]
+fn a_deferred_batch_is_checked_by_the_query_as_rays_new_checks_it() {
+    let mut scene = RayScene::new();
+    let v = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+    scene.add_mesh(&v, &[0, 1, 2], None).unwrap();
+    let n = 5000;
+    let o: Vec<f64> = (0..n).flat_map(|_| [0.1, 0.1, 1.0]).collect();
+    let d: Vec<f64> = (0..n).flat_map(|_| [0.0, 0.0, -1.0]).collect();
+    let good = Rays::deferred(&o, &d, 0.0, f64::INFINITY).unwrap();
+    let checked = Rays::new(&o, &d, 0.0, f64::INFINITY).unwrap();
+    for threads in [1, 2, 3] {
+        assert_eq!(
+            scene.intersect(&good, &options(threads)).unwrap(),
+            scene.intersect(&checked, &options(threads)).unwrap()
+        );
+    }
+    let (mut o2, mut d2) = (o.clone(), d.clone());
+    o2[3 * 4000 + 1] = f64::NAN;
+    o2[3 * 4500] = f64::INFINITY;
+    d2[3 * 10..3 * 11].fill(0.0);
+    d2[3 * 3000 + 2] = 1e31;
+    for (o, d, t_min) in [
+        (&o2, &d2, 0.0),
+        (&o, &d2, 0.0),
+        (&o, &d2, -1.0),
+        (&o2, &d, 0.0),
+    ] {
+        let want = Rays::new(o, d, t_min, 1.0).unwrap_err();
+        let batch = match Rays::deferred(o, d, t_min, 1.0) {
+            Ok(batch) => batch,
+            Err(e) => {
+                assert_eq!(e, want);
+                continue;
+            }
+        };
+        for threads in [1, 2] {
+            let options = options(threads);
+            assert_eq!(scene.intersect(&batch, &options).unwrap_err(), want);
+            assert_eq!(scene.occluded(&batch, &options).unwrap_err(), want);
+            assert_eq!(
+                scene.count_intersections(&batch, &options).unwrap_err(),
+                want
+            );
+            assert_eq!(scene.all_intersections(&batch, &options).unwrap_err(), want);
+        }
+    }
+}
+
 #[test]
 fn a_raised_cancel_flag_stops_a_query() {
     let mut rng = Rng(7);

@@ -46,8 +46,9 @@ impl RayScene {
     }
 
     /// Checks a query's rays (`origins`, `directions`, `tmin`, `tmax`,
-    /// `threads`, each error naming its argument) and runs `job` on them
-    /// without the GIL (see [`run`]).
+    /// `threads`, each error naming its argument; the coordinates on the
+    /// query's workers, [`Rays::deferred`]) and runs `job` on them without
+    /// the GIL (see [`run`]).
     #[allow(clippy::too_many_arguments)]
     fn query_rays<'py, T: Send>(
         &self,
@@ -64,11 +65,19 @@ impl RayScene {
             Coords::of("origins", origins)?,
             Coords::of("directions", directions)?,
         );
-        let rays = Rays::new(o.slice()?, d.slice()?, tmin, tmax).map_err(query_error)?;
+        // The coordinates are checked by the query's workers, chunk by
+        // chunk, not here before the work is shared.
+        let rays = Rays::deferred(o.slice()?, d.slice()?, tmin, tmax).map_err(query_error)?;
+        let threads = match threads_arg(threads) {
+            Ok(t) => t,
+            Err(e) => {
+                // A bad ray is reported before a bad thread count.
+                Rays::new(o.slice()?, d.slice()?, tmin, tmax).map_err(query_error)?;
+                return Err(e);
+            }
+        };
         let n = rays.len();
-        let answer = run(py, n, threads_arg(threads)?, |options| {
-            job(&scene, &rays, options)
-        })?;
+        let answer = run(py, n, threads, |options| job(&scene, &rays, options))?;
         Ok((answer, n))
     }
 }

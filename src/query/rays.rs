@@ -2,6 +2,7 @@
 //! cancellation) and its outputs as flat arrays, one entry per ray.
 
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
 
 use glam::DVec3;
 
@@ -20,6 +21,9 @@ pub struct Rays<'a> {
     pub t_min: f64,
     /// Hits at t ≥ t_max are not seen.
     pub t_max: f64,
+    /// Whether the coordinates are still to be checked (by the query,
+    /// chunk by chunk on its workers: [`Rays::deferred`]).
+    unchecked: bool,
 }
 
 impl<'a> Rays<'a> {
@@ -44,9 +48,7 @@ impl<'a> Rays<'a> {
         finite_rows("directions", directions)?;
         // A pass without an early exit first, which the compiler turns
         // into vector code; the row is looked for only when there is one.
-        let zero = |d: &[f64]| {
-            (d[0].abs() < MIN_LENGTH) & (d[1].abs() < MIN_LENGTH) & (d[2].abs() < MIN_LENGTH)
-        };
+        let zero = zero_direction;
         let any_zero = directions
             .chunks_exact(3)
             .fold(false, |seen, d| seen | zero(d));
@@ -81,7 +83,65 @@ impl<'a> Rays<'a> {
             directions,
             t_min,
             t_max,
+            unchecked: false,
         })
+    }
+
+    /// The batch [`Rays::new`] makes, but with the coordinates (finite,
+    /// within bounds, no zero direction) checked by each query on its
+    /// workers, a chunk of rays just before they are traced, instead of
+    /// here on the calling thread. A query given a bad batch returns the
+    /// error `Rays::new` would have; the number of rays and `t_min`,
+    /// `t_max` are checked here (a bad `t_min` or `t_max` with bad
+    /// coordinates reports the coordinates, as `Rays::new` does).
+    pub fn deferred(
+        origins: &'a [f64],
+        directions: &'a [f64],
+        t_min: f64,
+        t_max: f64,
+    ) -> Result<Self, QueryError> {
+        let n = rows("origins", origins)?;
+        if rows("directions", directions)? != n
+            || t_min.is_nan()
+            || t_min < 0.0
+            || t_max.is_nan()
+            || t_min >= t_max
+        {
+            // The error, in Rays::new's order.
+            return Self::new(origins, directions, t_min, t_max);
+        }
+        Ok(Rays {
+            origins,
+            directions,
+            t_min,
+            t_max,
+            unchecked: true,
+        })
+    }
+
+    /// For a query's worker: whether rays `first..first + count` may be
+    /// traced, or else the error [`Rays::new`] gives the whole batch.
+    pub(crate) fn check_chunk(&self, first: usize, count: usize) -> Result<(), QueryError> {
+        if !self.unchecked {
+            return Ok(());
+        }
+        let (o, d) = (
+            &self.origins[3 * first..3 * (first + count)],
+            &self.directions[3 * first..3 * (first + count)],
+        );
+        let bounded = |v: &[f64]| {
+            v.iter()
+                .fold(true, |ok, v| ok & (v.abs() <= MAX_COORDINATE))
+        };
+        let zero = d
+            .chunks_exact(3)
+            .fold(false, |seen, d| seen | zero_direction(d));
+        if bounded(o) && bounded(d) && !zero {
+            return Ok(());
+        }
+        // Rare: the first bad row of the whole batch, as Rays::new
+        // reports it.
+        Self::new(self.origins, self.directions, self.t_min, self.t_max).map(|_| ())
     }
 
     /// Number of rays.
@@ -110,6 +170,12 @@ pub(crate) fn check_points(name: &'static str, points: &[f64]) -> Result<usize, 
     let n = rows(name, points)?;
     finite_rows(name, points)?;
     Ok(n)
+}
+
+/// Whether a direction is below `MIN_LENGTH` in every component.
+#[inline]
+fn zero_direction(d: &[f64]) -> bool {
+    (d[0].abs() < MIN_LENGTH) & (d[1].abs() < MIN_LENGTH) & (d[2].abs() < MIN_LENGTH)
 }
 
 fn rows(name: &'static str, values: &[f64]) -> Result<usize, QueryError> {
@@ -166,7 +232,9 @@ impl QueryOptions<'_> {
         self.cancel.is_some_and(|c| c.load(Ordering::Relaxed))
     }
 
-    /// Runs `job` on a pool of the chosen size.
+    /// Runs `job` on a pool of the chosen size: rayon's global pool when
+    /// it has that many threads, else one built on first use and kept
+    /// for the queries after (see [`pool`]).
     pub(crate) fn run<T: Send>(
         &self,
         job: impl FnOnce() -> Result<T, QueryError> + Send,
@@ -177,13 +245,45 @@ impl QueryOptions<'_> {
                 "threads",
                 format!("must be between 1 and {MAX_THREADS}, got {n}"),
             )),
-            Some(n) => rayon::ThreadPoolBuilder::new()
-                .num_threads(n)
-                .build()
-                .map_err(|e| QueryError::invalid("threads", e.to_string()))?
-                .install(job),
+            // Outside any pool, current_num_threads is the global pool's.
+            Some(n)
+                if rayon::current_thread_index().is_none() && n == rayon::current_num_threads() =>
+            {
+                job()
+            }
+            Some(n) => pool(n)?.install(job),
         }
     }
+}
+
+/// Pools kept for thread counts other than the global pool's: building one
+/// per query (spawning and joining its threads) cost the calling thread
+/// before the work was shared.
+const KEPT_POOLS: usize = 4;
+
+/// The pool of `n` threads: the one kept, else a new one, kept in place of
+/// the least recently used when `KEPT_POOLS` are kept (a query still on
+/// that one holds it until it ends).
+fn pool(n: usize) -> Result<Arc<rayon::ThreadPool>, QueryError> {
+    static POOLS: Mutex<Vec<(usize, Arc<rayon::ThreadPool>)>> = Mutex::new(Vec::new());
+    let mut pools = POOLS.lock().unwrap_or_else(PoisonError::into_inner);
+    if let Some(i) = pools.iter().position(|(k, _)| *k == n) {
+        let kept = pools.remove(i);
+        let pool = Arc::clone(&kept.1);
+        pools.push(kept);
+        return Ok(pool);
+    }
+    let pool = Arc::new(
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .map_err(|e| QueryError::invalid("threads", e.to_string()))?,
+    );
+    if pools.len() == KEPT_POOLS {
+        pools.remove(0);
+    }
+    pools.push((n, Arc::clone(&pool)));
+    Ok(pool)
 }
 
 /// The nearest hit of each ray, as flat arrays indexed by ray; a ray that

@@ -92,6 +92,7 @@ impl RayScene {
                     if options.cancelled() {
                         return Err(QueryError::Cancelled);
                     }
+                    rays.check_chunk(c * CHUNK, t.len())?;
                     for first in (0..t.len()).step_by(PACKET) {
                         let count = PACKET.min(t.len() - first);
                         let mut group = [MISS; PACKET];
@@ -133,6 +134,7 @@ impl RayScene {
                     if options.cancelled() {
                         return Err(QueryError::Cancelled);
                     }
+                    rays.check_chunk(c * CHUNK, out.len())?;
                     for (g, group) in out.chunks_mut(PACKET).enumerate() {
                         self.blocked_group(rays, c * CHUNK + g * PACKET, group, scale);
                     }
@@ -159,6 +161,7 @@ impl RayScene {
                     if options.cancelled() {
                         return Err(QueryError::Cancelled);
                     }
+                    rays.check_chunk(c * CHUNK, out.len())?;
                     for (g, group) in out.chunks_mut(STREAM).enumerate() {
                         self.count_group(rays, c * CHUNK + g * STREAM, group, scale);
                     }
@@ -183,6 +186,8 @@ impl RayScene {
                     if options.cancelled() {
                         return Err(QueryError::Cancelled);
                     }
+                    let first = c * CHUNK;
+                    rays.check_chunk(first, CHUNK.min(n - first))?;
                     let mut counts = Vec::new();
                     let mut all = Vec::new();
                     for k in c * CHUNK..((c + 1) * CHUNK).min(n) {
