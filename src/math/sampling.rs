@@ -129,12 +129,12 @@ pub fn concentric_disk(u: DVec2) -> DVec2 {
         return DVec2::ZERO;
     }
     // The angle in turns (1 turn = 2π): within ±1/8 of the axis of the
-    // larger coordinate.
-    let (r, turns) = if a.x.abs() > a.y.abs() {
-        (a.x, 0.125 * (a.y / a.x))
-    } else {
-        (a.y, 0.25 - 0.125 * (a.x / a.y))
-    };
+    // larger coordinate. Both quotients are formed and one chosen: the
+    // choice is a coin toss a branch would mispredict half the time.
+    let x_major = a.x.abs() > a.y.abs();
+    let (near_x, near_y) = (0.125 * (a.y / a.x), 0.25 - 0.125 * (a.x / a.y));
+    let r = if x_major { a.x } else { a.y };
+    let turns = if x_major { near_x } else { near_y };
     let (sin, cos) = transcendental::sin_cos_turns(turns);
     r * DVec2::new(cos, sin)
 }

@@ -254,11 +254,21 @@ pub fn render_row(
         let mut sums = [DVec3::ZERO; PACKET];
         let mut rays = [Ray::new(DVec3::ZERO, DVec3::Z); PACKET];
         let mut hits = [None; PACKET];
+        // Lanes past `n` (a row's last, short packet) are traced by no one.
+        let mut points = [glam::DVec2::ZERO; PACKET];
+        let mut disks = [glam::DVec2::ZERO; PACKET];
         for s in 0..spp {
-            for (k, (ray, rng)) in rays.iter_mut().zip(&mut rngs).enumerate().take(n) {
+            for (k, rng) in rngs.iter_mut().enumerate().take(n) {
                 let x = x0 + k as u32;
-                *ray = camera_ray(&film, &strata, s, x, y, lens_keys[k], rng).0;
+                (points[k], disks[k]) = camera_sample(&film, &strata, s, x, y, lens_keys[k], rng);
             }
+            if film.camera().lens.is_some() {
+                // Apart from the draws: the lanes' maps run side by side.
+                for disk in &mut disks[..n] {
+                    *disk = concentric_disk(*disk);
+                }
+            }
+            film.rays_through_lens(&points, &disks, &mut rays);
             scene
                 .aggregate
                 .closest_hit_packet(&rays[..n], f64::INFINITY, &mut hits[..n]);
@@ -416,20 +426,40 @@ fn camera_ray(
     lens_key: u32,
     rng: &mut PixelRng,
 ) -> (Ray, Option<glam::DVec2>) {
+    let (point, lens_point) = camera_sample(film, strata, s, x, y, lens_key, rng);
+    let Some(lens) = film.camera().lens else {
+        return (film.ray(point.x, point.y), None);
+    };
+    let disk = concentric_disk(lens_point);
+    let ray = film.ray_through_lens(point.x, point.y, disk);
+    (ray, Some(lens.radius * disk))
+}
+
+/// The samples of [`camera_ray`]: its film point, in pixels, and its
+/// point of the lens's unit square (zero without a lens), which
+/// [`concentric_disk`] carries onto the lens, drawn from `rng` in that
+/// order.
+fn camera_sample(
+    film: &FilmRays,
+    strata: &Strata,
+    s: usize,
+    x: u32,
+    y: u32,
+    lens_key: u32,
+    rng: &mut PixelRng,
+) -> (glam::DVec2, glam::DVec2) {
     let offset = if strata.len() == 1 {
         glam::DVec2::splat(0.5)
     } else {
         strata.point(s, rng)
     };
-    let (x, y) = (f64::from(x) + offset.x, f64::from(y) + offset.y);
-    let Some(lens) = film.camera().lens else {
-        return (film.ray(x, y), None);
-    };
+    let point = glam::DVec2::new(f64::from(x) + offset.x, f64::from(y) + offset.y);
+    if film.camera().lens.is_none() {
+        return (point, glam::DVec2::ZERO);
+    }
     let n = strata.len() as u32;
     let stratum = permutation_element(s as u32, n, lens_key) as usize;
-    let disk = concentric_disk(strata.point(stratum, rng));
-    let ray = film.ray_through_lens(x, y, disk);
-    (ray, Some(lens.radius * disk))
+    (point, strata.point(stratum, rng))
 }
 
 /// The seed of frame `frame`'s pixel streams: the scene's seed for frame
