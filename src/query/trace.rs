@@ -17,6 +17,7 @@ use crate::accel::PACKET;
 use crate::geometry::Aabb;
 use crate::geometry::cuboid::slab_interval;
 use crate::geometry::mesh::{FacetHit, STREAM};
+use crate::huge_pages;
 
 // A counting group is a packet or a stream, as its rays are.
 const _: () = assert!(STREAM == PACKET);
@@ -65,12 +66,12 @@ impl RayScene {
         // (no pass over them here): each worker faults in and writes its
         // own chunks, a miss's t and ids included.
         let mut hits = Hits {
-            t: vec![0.0; n],
-            mesh_id: vec![0; n],
-            triangle_id: vec![0; n],
-            u: vec![0.0; n],
-            v: vec![0.0; n],
-            normal: vec![0.0; 3 * n],
+            t: huge_pages::zeroed(n),
+            mesh_id: huge_pages::zeroed(n),
+            triangle_id: huge_pages::zeroed(n),
+            u: huge_pages::zeroed(n),
+            v: huge_pages::zeroed(n),
+            normal: huge_pages::zeroed(3 * n),
         };
         let Hits {
             t,
@@ -124,7 +125,7 @@ impl RayScene {
 
     /// Whether each ray hits anything with t in (t_min, t_max).
     pub fn occluded(&self, rays: &Rays, options: &QueryOptions) -> Result<Vec<bool>, QueryError> {
-        let mut blocked = vec![false; rays.len()];
+        let mut blocked = huge_pages::zeroed(rays.len());
         let scale = self.bounds().diagonal();
         options.run(|| {
             blocked
@@ -151,7 +152,7 @@ impl RayScene {
         rays: &Rays,
         options: &QueryOptions,
     ) -> Result<Vec<u32>, QueryError> {
-        let mut counts = vec![0u32; rays.len()];
+        let mut counts: Vec<u32> = huge_pages::zeroed(rays.len());
         let scale = self.bounds().diagonal();
         options.run(|| {
             counts
