@@ -12,7 +12,7 @@
 
 use glam::{DVec2, DVec3};
 
-use super::span::{Intervals, Surface, interval};
+use super::span::{Interval, Intervals, Surface, interval};
 use super::{Aabb, ShapeHit};
 use crate::math::{Ray, Transform};
 
@@ -83,20 +83,23 @@ impl Cuboid {
 
     /// Where the whole line of `ray` is inside: the slab interval.
     pub fn inside(&self, ray: &Ray) -> Intervals {
+        self.interval(ray).into_iter().collect()
+    }
+
+    /// [`inside`](Self::inside)'s one interval, if any.
+    #[inline(always)]
+    pub fn interval(&self, ray: &Ray) -> Option<Interval> {
         let (origin, direction) = self.transform.ray_to_object(ray);
-        let mut out = Intervals::new();
-        if let Some(((t0, a0), (t1, a1))) = slab_interval(origin, direction, self.min, self.max) {
-            // The part is the face: its axis, and whether it faces +axis.
-            let face = |t: f64, axis: usize, sign: f64| Surface {
-                t,
-                part: (2 * axis) as u8 + u8::from(sign > 0.0),
-            };
-            out.extend(interval(
-                face(t0, a0, -direction[a0].signum()),
-                face(t1, a1, direction[a1].signum()),
-            ));
-        }
-        out
+        let ((t0, a0), (t1, a1)) = slab_interval(origin, direction, self.min, self.max)?;
+        // The part is the face: its axis, and whether it faces +axis.
+        let face = |t: f64, axis: usize, sign: f64| Surface {
+            t,
+            part: (2 * axis) as u8 + u8::from(sign > 0.0),
+        };
+        interval(
+            face(t0, a0, -direction[a0].signum()),
+            face(t1, a1, direction[a1].signum()),
+        )
     }
 
     /// The outward unit normal of face `s.part` (see `inside`).

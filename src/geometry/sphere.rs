@@ -2,7 +2,7 @@
 
 use glam::DVec3;
 
-use super::span::{Intervals, Surface, interval};
+use super::span::{Interval, Intervals, Surface, interval};
 use super::steps::Steps;
 use super::{Aabb, ShapeHit};
 use crate::math::{Ray, Transform};
@@ -168,11 +168,14 @@ impl Sphere {
 
     /// Where the whole line of `ray` is inside: between the two roots.
     pub fn inside(&self, ray: &Ray) -> Intervals {
-        let mut out = Intervals::new();
-        if let Some((t0, t1)) = sphere_roots(ray.origin, ray.direction, self.center, self.radius) {
-            out.extend(interval(Surface::at(t0), Surface::at(t1)));
-        }
-        out
+        self.interval(ray).into_iter().collect()
+    }
+
+    /// [`inside`](Self::inside)'s one interval, if any.
+    #[inline(always)]
+    pub fn interval(&self, ray: &Ray) -> Option<Interval> {
+        let (t0, t1) = sphere_roots(ray.origin, ray.direction, self.center, self.radius)?;
+        interval(Surface::at(t0), Surface::at(t1))
     }
 
     /// The outward unit normal where `ray` crosses the surface at `s`.
