@@ -457,6 +457,9 @@ impl<'a> Work<'a> {
     }
 }
 
+/// The children that may matter to a query.
+type Candidates = SmallVec<[u32; 8]>;
+
 /// Whether `ray` meets `b` with t within `window`.
 #[inline]
 fn meets(ray: &Ray, window: (f64, f64), b: &Aabb) -> bool {
@@ -545,17 +548,25 @@ impl Csg {
     }
 
     /// The children whose intervals along `ray` within `window` may not
-    /// be empty, ascending; `None` when one that must be met (by an
-    /// intersection, or a difference's first) is not.
-    fn candidates(&self, ray: &Ray, window: (f64, f64)) -> Option<SmallVec<[u32; 8]>> {
-        let mut out: SmallVec<[u32; 8]> = SmallVec::new();
+    /// be empty, ascending, put in `out`; false when one that must be met
+    /// (by an intersection, or a difference's first) is not. `first_met`:
+    /// the first child's box is known to meet the window (a difference's
+    /// box is its first child's), so it is not tested again.
+    #[inline]
+    fn candidates(
+        &self,
+        ray: &Ray,
+        window: (f64, f64),
+        first_met: bool,
+        out: &mut Candidates,
+    ) -> bool {
         let mut met_bounded = 0;
         match &self.index {
             None => {
                 for (i, b) in self.child_bounds.iter().enumerate() {
                     match b {
                         None => out.push(i as u32),
-                        Some(b) if meets(ray, window, b) => {
+                        Some(b) if (i == 0 && first_met) || meets(ray, window, b) => {
                             met_bounded += 1;
                             out.push(i as u32);
                         }
@@ -582,9 +593,9 @@ impl Csg {
         }
         let all_met = met_bounded == self.bounded_count;
         match self.op {
-            CsgOp::Intersection if !all_met => None,
-            CsgOp::Difference if out.first() != Some(&0) => None,
-            _ => Some(out),
+            CsgOp::Intersection => all_met,
+            CsgOp::Difference => out.first() == Some(&0),
+            _ => true,
         }
     }
 
@@ -594,7 +605,7 @@ impl Csg {
     /// solid's). `(−∞, +∞)`: the whole line.
     pub fn spans<'a>(&'a self, ray: &Ray, window: (f64, f64)) -> Spans<'a> {
         let mut work = Work::new(window);
-        self.spans_into(ray, &mut work);
+        self.spans_into(ray, &mut work, false);
         work.stack
             .iter()
             .map(|s| Span {
@@ -608,10 +619,11 @@ impl Csg {
     /// stops, its list left empty, once nothing of it reaches the window:
     /// the operands still to come can only take away, and intervals
     /// outside the window change no end inside it, here or above.
-    fn spans_into<'a>(&'a self, ray: &Ray, work: &mut Work<'a>) {
-        let Some(candidates) = self.candidates(ray, work.window) else {
+    fn spans_into<'a>(&'a self, ray: &Ray, work: &mut Work<'a>, first_met: bool) {
+        let mut candidates = Candidates::new();
+        if !self.candidates(ray, work.window, first_met, &mut candidates) {
             return;
-        };
+        }
         let base = work.stack.len();
         let mut ids = candidates.iter().map(|&i| &self.children[i as usize]);
         let Some(first) = ids.next() else {
@@ -643,14 +655,19 @@ impl Csg {
             return None;
         }
         let mut work = Work::new((t_min, t_max));
-        self.spans_into(ray, &mut work);
-        let end = work
-            .stack
-            .iter()
-            .flat_map(|s| [&s.enter, &s.exit])
-            .find(|b| b.t > t_min && b.t < t_max)?;
+        // A difference's box is its first child's, just met.
+        self.spans_into(ray, &mut work, self.op == CsgOp::Difference);
+        let end = first_end(&work.stack, work.window)?;
         Some(work.boundary(end))
     }
+}
+
+/// The first end of `list` inside the open `window`.
+#[inline(always)]
+fn first_end<'l, 'a>(list: &'l [Piece<'a>], window: (f64, f64)) -> Option<&'l End<'a>> {
+    list.iter()
+        .flat_map(|s| [&s.enter, &s.exit])
+        .find(|b| b.t > window.0 && b.t < window.1)
 }
 
 /// The intervals of one operand, complemented when it is inverted,
@@ -675,7 +692,7 @@ fn shape_spans_into<'a>(shape: &'a Shape, material: u32, ray: &Ray, work: &mut W
         exit: End::of_surface(i.exit, material, shape),
     };
     match shape {
-        Shape::Csg(c) => c.spans_into(ray, work),
+        Shape::Csg(c) => c.spans_into(ray, work, false),
         Shape::Mesh(m) => {
             for (a, b) in m.inside(ray) {
                 let enter = End::of_mesh_hit(&a, true, ray.direction, shape, &mut work.normals);
