@@ -89,6 +89,10 @@ pub struct Csg {
     /// How many children are bounded (and not inverted).
     bounded_count: usize,
     bounds: Option<Aabb>,
+    /// The first this many children have boxes that hold `bounds` (a
+    /// difference's first child, every child of an intersection whose
+    /// children's boxes overlap): a line that meets `bounds` meets theirs.
+    holding: usize,
     /// The material that fills the solid, when the CSG names one.
     medium: Option<u32>,
 }
@@ -457,6 +461,19 @@ impl<'a> Work<'a> {
     }
 }
 
+/// Whether the boxes of an intersection's bounded children overlap (in a
+/// box that each of them holds).
+fn intersection_overlaps(child_bounds: &[Option<Aabb>]) -> bool {
+    let mut boxes = child_bounds.iter().flatten();
+    let Some(first) = boxes.next() else {
+        return false;
+    };
+    let (min, max) = boxes.fold((first.min, first.max), |(min, max), b| {
+        (min.max(b.min), max.min(b.max))
+    });
+    min.cmple(max).all()
+}
+
 /// The children that may matter to a query.
 type Candidates = SmallVec<[u32; 8]>;
 
@@ -506,9 +523,15 @@ impl Csg {
             }
             CsgOp::Difference => child_bounds[0],
         };
+        let holding = match op {
+            CsgOp::Difference => 1,
+            CsgOp::Intersection if intersection_overlaps(&child_bounds) => children.len(),
+            _ => 0,
+        };
         Csg {
             op,
             bounded_count: bounded.len(),
+            holding,
             children,
             child_bounds,
             index,
@@ -549,24 +572,21 @@ impl Csg {
 
     /// The children whose intervals along `ray` within `window` may not
     /// be empty, ascending, put in `out`; false when one that must be met
-    /// (by an intersection, or a difference's first) is not. `first_met`:
-    /// the first child's box is known to meet the window (a difference's
-    /// box is its first child's), so it is not tested again.
+    /// (by an intersection, or a difference's first) is not. `met`: the
+    /// node's box is known to meet the window, and so are the boxes that
+    /// hold it (see `holding`), which are not tested again. The slab test
+    /// keeps that to the bit: each operation in it is correctly rounded,
+    /// so monotonic, and a box's faces lie outside (or on) those of a box
+    /// it holds, so its computed interval holds the other's.
     #[inline]
-    fn candidates(
-        &self,
-        ray: &Ray,
-        window: (f64, f64),
-        first_met: bool,
-        out: &mut Candidates,
-    ) -> bool {
+    fn candidates(&self, ray: &Ray, window: (f64, f64), met: bool, out: &mut Candidates) -> bool {
         let mut met_bounded = 0;
         match &self.index {
             None => {
                 for (i, b) in self.child_bounds.iter().enumerate() {
                     match b {
                         None => out.push(i as u32),
-                        Some(b) if (i == 0 && first_met) || meets(ray, window, b) => {
+                        Some(b) if (met && i < self.holding) || meets(ray, window, b) => {
                             met_bounded += 1;
                             out.push(i as u32);
                         }
@@ -619,9 +639,10 @@ impl Csg {
     /// stops, its list left empty, once nothing of it reaches the window:
     /// the operands still to come can only take away, and intervals
     /// outside the window change no end inside it, here or above.
-    fn spans_into<'a>(&'a self, ray: &Ray, work: &mut Work<'a>, first_met: bool) {
+    /// `met`: whether this node's box is known to meet the window.
+    fn spans_into<'a>(&'a self, ray: &Ray, work: &mut Work<'a>, met: bool) {
         let mut candidates = Candidates::new();
-        if !self.candidates(ray, work.window, first_met, &mut candidates) {
+        if !self.candidates(ray, work.window, met, &mut candidates) {
             return;
         }
         let base = work.stack.len();
@@ -655,8 +676,7 @@ impl Csg {
             return None;
         }
         let mut work = Work::new((t_min, t_max));
-        // A difference's box is its first child's, just met.
-        self.spans_into(ray, &mut work, self.op == CsgOp::Difference);
+        self.spans_into(ray, &mut work, self.bounds.is_some());
         let end = first_end(&work.stack, work.window)?;
         Some(work.boundary(end))
     }
@@ -675,7 +695,7 @@ fn first_end<'l, 'a>(list: &'l [Piece<'a>], window: (f64, f64)) -> Option<&'l En
 #[inline(always)]
 fn child_spans_into<'a>(child: &'a CsgChild, ray: &Ray, work: &mut Work<'a>) {
     let from = work.stack.len();
-    shape_spans_into(&child.shape, child.material, ray, work);
+    shape_spans_into(&child.shape, child.material, child.inverse, ray, work);
     if child.inverse {
         work.complement_from(from);
     }
@@ -686,13 +706,21 @@ fn child_spans_into<'a>(child: &'a CsgChild, ray: &Ray, work: &mut Work<'a>) {
 /// commonest operands, without going through a list). Shapes without an
 /// inside (refused when a scene is built) have none.
 #[inline(always)]
-fn shape_spans_into<'a>(shape: &'a Shape, material: u32, ray: &Ray, work: &mut Work<'a>) {
+fn shape_spans_into<'a>(
+    shape: &'a Shape,
+    material: u32,
+    inverse: bool,
+    ray: &Ray,
+    work: &mut Work<'a>,
+) {
     let piece = |i: Interval| Piece {
         enter: End::of_surface(i.enter, material, shape),
         exit: End::of_surface(i.exit, material, shape),
     };
     match shape {
-        Shape::Csg(c) => c.spans_into(ray, work, false),
+        // A candidate's box met the window, unless it has none or the
+        // child is inverted (then it was not tested).
+        Shape::Csg(c) => c.spans_into(ray, work, !inverse && c.bounds.is_some()),
         Shape::Mesh(m) => {
             for (a, b) in m.inside(ray) {
                 let enter = End::of_mesh_hit(&a, true, ray.direction, shape, &mut work.normals);
