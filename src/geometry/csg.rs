@@ -650,7 +650,54 @@ impl Csg {
         let Some(first) = ids.next() else {
             return;
         };
-        child_spans_into(first, ray, work);
+        if self.op == CsgOp::Intersection
+            && let Some(piece) = single_piece(first, ray)
+        {
+            // Spheres and boxes, the commonest operands, have one interval
+            // at most, and so has their intersection: it is kept here, off
+            // the list, for as long as the operands are such.
+            let Some(mut acc) = piece else {
+                return;
+            };
+            loop {
+                let Some(child) = ids.next() else {
+                    work.stack.push(acc);
+                    return;
+                };
+                if !reaches(&[acc], work.window) {
+                    return;
+                }
+                match single_piece(child, ray) {
+                    Some(None) => return,
+                    Some(Some(next)) => {
+                        // `intersect_into` of two one-interval lists.
+                        let enter = if acc.enter.t >= next.enter.t {
+                            acc.enter
+                        } else {
+                            next.enter
+                        };
+                        let exit = if acc.exit.t <= next.exit.t {
+                            acc.exit
+                        } else {
+                            next.exit
+                        };
+                        if enter.t >= exit.t {
+                            return;
+                        }
+                        acc = Piece { enter, exit };
+                    }
+                    None => {
+                        work.stack.push(acc);
+                        let mid = work.stack.len();
+                        child_spans_into(child, ray, work);
+                        work.combine(self.op, base, mid);
+                        break;
+                    }
+                }
+            }
+        } else {
+            child_spans_into(first, ray, work);
+        }
         let joins = matches!(self.op, CsgOp::Union | CsgOp::Merge);
         for child in ids {
             let mid = work.stack.len();
@@ -688,6 +735,22 @@ fn first_end<'l, 'a>(list: &'l [Piece<'a>], window: (f64, f64)) -> Option<&'l En
     list.iter()
         .flat_map(|s| [&s.enter, &s.exit])
         .find(|b| b.t > window.0 && b.t < window.1)
+}
+
+/// The one interval (or none) of an operand that is a sphere or a box,
+/// not inverted; `None` for any other.
+#[inline(always)]
+fn single_piece<'a>(child: &'a CsgChild, ray: &Ray) -> Option<Option<Piece<'a>>> {
+    let interval = match &child.shape {
+        _ if child.inverse => return None,
+        Shape::Sphere(s) => s.interval(ray),
+        Shape::Cuboid(b) => b.interval(ray),
+        _ => return None,
+    };
+    Some(interval.map(|i| Piece {
+        enter: End::of_surface(i.enter, child.material, &child.shape),
+        exit: End::of_surface(i.exit, child.material, &child.shape),
+    }))
 }
 
 /// The intervals of one operand, complemented when it is inverted,
