@@ -455,7 +455,7 @@ impl<'a> Work<'a> {
         self.settle(base);
     }
 
-    /// The end of `piece` as handed out.
+    /// `end` as a query hands it out.
     fn boundary(&self, end: &End<'a>) -> Boundary<'a> {
         end.boundary(&self.normals)
     }
