@@ -31,7 +31,6 @@ pub struct Cuboid {
 /// ((t_enter, entry axis), (t_exit, exit axis)), or `None` when it misses.
 /// A direction component of 0 leaves that slab open when the origin lies
 /// in it (no 0/0 on its faces).
-#[inline]
 pub fn slab_interval(
     origin: DVec3,
     direction: DVec3,
