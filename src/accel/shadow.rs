@@ -61,6 +61,79 @@ struct FeelerHull {
     radius: f64,
     /// Slack for rounding and pushed-off origins, in length units.
     slack: f64,
+    /// Half-spaces n·x ≤ d whose intersection holds the hull widened by
+    /// the slack (see [`HullPlanes`]).
+    planes: HullPlanes,
+}
+
+/// How many half-spaces bound the hull: four side planes through the apex
+/// tangent to the light's sphere, and the near and far planes across the
+/// axis.
+const HULL_PLANES: usize = 6;
+
+/// The hull's bounding half-spaces n·x ≤ d as a structure of arrays, with
+/// |n| by component, for the boxes' support test.
+#[derive(Clone, Copy, Debug)]
+struct HullPlanes {
+    normal: [[f64; HULL_PLANES]; 3],
+    abs: [[f64; HULL_PLANES]; 3],
+    offset: [f64; HULL_PLANES],
+}
+
+impl HullPlanes {
+    /// The planes of the hull of `apex` and the ball (`apex` + `axis`·
+    /// `distance`, `radius`), each pushed out by `slack`. A side plane has
+    /// the normal n = −sin α·axis + cos α·w (w ⊥ axis, sin α = radius /
+    /// distance) through the apex: n·(centre − apex) + radius = 0, so the
+    /// ball and the apex lie on its inner side, and so does their hull.
+    fn new(apex: DVec3, axis: DVec3, distance: f64, radius: f64, slack: f64) -> Self {
+        let sin_alpha = radius / distance;
+        let cos_alpha = (1.0 - sin_alpha * sin_alpha).max(0.0).sqrt();
+        let frame = crate::math::Frame::from_z(axis);
+        let side = |w: DVec3| -sin_alpha * axis + cos_alpha * w;
+        let normals = [
+            side(frame.x),
+            side(-frame.x),
+            side(frame.y),
+            side(-frame.y),
+            -axis,
+            axis,
+        ];
+        let mut planes = HullPlanes {
+            normal: [[0.0; HULL_PLANES]; 3],
+            abs: [[0.0; HULL_PLANES]; 3],
+            offset: [0.0; HULL_PLANES],
+        };
+        for (k, n) in normals.into_iter().enumerate() {
+            for axis in 0..3 {
+                planes.normal[axis][k] = n[axis];
+                planes.abs[axis][k] = n[axis].abs();
+            }
+            // The far plane lies beyond the light's far side.
+            let far = if k == HULL_PLANES - 1 {
+                distance + radius
+            } else {
+                0.0
+            };
+            planes.offset[k] = n.dot(apex) + far + slack;
+        }
+        planes
+    }
+
+    /// Whether the box (`center` ± `half`) may meet every half-space: its
+    /// nearest corner to each plane, n·c − |n|·h, lies on the inner side.
+    #[inline]
+    fn may_meet_box(&self, center: DVec3, half: DVec3) -> bool {
+        let mut meets = true;
+        for k in 0..HULL_PLANES {
+            let near = self.normal[0][k] * center.x
+                + self.normal[1][k] * center.y
+                + self.normal[2][k] * center.z
+                - (self.abs[0][k] * half.x + self.abs[1][k] * half.y + self.abs[2][k] * half.z);
+            meets &= near <= self.offset[k];
+        }
+        meets
+    }
 }
 
 impl FeelerHull {
@@ -86,8 +159,11 @@ impl FeelerHull {
         along / length >= self.cos_alpha * cos_beta - self.sin_alpha * sin_beta - 1e-6
     }
 
+    /// Whether a box may meet the hull: not when it lies outside one of
+    /// the hull's bounding planes.
     fn may_meet_box(&self, b: &Aabb) -> bool {
-        self.may_meet_sphere(b.centroid(), 0.5 * (b.max - b.min).length())
+        self.planes
+            .may_meet_box(0.5 * (b.min + b.max), 0.5 * (b.max - b.min))
     }
 
     /// Whether the plane n·x = d may cross a feeler: not when the apex and
@@ -128,16 +204,19 @@ impl Aggregate {
         let scale = crate::math::max_abs_component(apex)
             .max(crate::math::max_abs_component(apex + to_center) + radius)
             .max(1.0);
+        let axis = to_center / distance;
+        // Origins are pushed off by RELATIVE_OFFSET·scale; f64 rounding
+        // of the tests is far below a millionth of the scale.
+        let slack = 2.0 * RELATIVE_OFFSET * scale + 1e-6 * (distance + radius);
         let hull = FeelerHull {
             apex,
-            axis: to_center / distance,
+            axis,
             distance,
             sin_alpha: radius / distance,
             cos_alpha: (1.0 - (radius / distance).powi(2)).max(0.0).sqrt(),
             radius,
-            // Origins are pushed off by RELATIVE_OFFSET·scale; f64 rounding
-            // of the tests is far below a millionth of the scale.
-            slack: 2.0 * RELATIVE_OFFSET * scale + 1e-6 * (distance + radius),
+            slack,
+            planes: HullPlanes::new(apex, axis, distance, radius, slack),
         };
         let mut found = ShadowCandidates {
             primitives: [0; MAX_CANDIDATES],
@@ -789,6 +868,39 @@ mod tests {
         }
         // Some feelers pass, some are blocked.
         assert!(blocked > 200 && blocked < 1400, "{blocked}");
+    }
+
+    /// The hull's planes keep every box that holds a point of the hull
+    /// (a point between the apex and a point of the light's ball), and
+    /// cull boxes well off its side.
+    #[test]
+    fn the_hull_planes_keep_every_box_around_a_point_of_the_hull() {
+        let mut rng = PixelRng::new(3, 8, 5);
+        let mut u = || 2.0 * rng.uniform() - 1.0;
+        let mut culled = 0;
+        for _ in 0..2000 {
+            let apex = DVec3::new(u(), u(), u()) * 5.0;
+            let center = DVec3::new(u(), u(), u()) * 10.0;
+            let radius = 0.05 + u().abs();
+            let to_center = center - apex;
+            let distance = to_center.length();
+            if distance <= radius {
+                continue;
+            }
+            let axis = to_center / distance;
+            let planes = HullPlanes::new(apex, axis, distance, radius, 0.0);
+            let inside = DVec3::new(u(), u(), u());
+            let q = center + radius * inside.normalize_or_zero() * u().abs();
+            let p = apex + (q - apex) * u().abs();
+            let half = DVec3::new(u().abs(), u().abs(), u().abs()) * 0.01;
+            let shift = DVec3::new(u(), u(), u()) * half;
+            assert!(planes.may_meet_box(p + shift, half), "{apex} {center} {p}");
+            // A small box off the side, beyond the widest part of the hull.
+            let side = crate::math::Frame::from_z(axis).x;
+            let off = apex + axis * distance * u().abs() + side * (radius * 1.5 + 0.1);
+            culled += usize::from(!planes.may_meet_box(off, DVec3::splat(0.01)));
+        }
+        assert!(culled > 1500, "{culled}");
     }
 
     #[test]
