@@ -25,18 +25,6 @@ pub fn with_capacity<T>(capacity: usize) -> Vec<T> {
     v
 }
 
-/// `n` zeros (of a number type), in memory advised as by
-/// [`with_capacity`]: the allocator takes a big zeroed block from the
-/// system as it is, untouched, so the advice comes before the first write
-/// and each 2 MiB of the answer costs one page fault instead of 512.
-pub fn zeroed<T: Copy + Default>(n: usize) -> Vec<T> {
-    // `vec![zero; n]` of a number type is the allocator's zeroed memory,
-    // not a pass of writes.
-    let v = vec![T::default(); n];
-    advise(v.as_ptr() as usize, n.saturating_mul(size_of::<T>()));
-    v
-}
-
 /// The vector of `items`, in memory advised as by [`with_capacity`].
 pub fn collect<T>(items: impl ExactSizeIterator<Item = T>) -> Vec<T> {
     let mut v = with_capacity(items.len());
@@ -80,8 +68,6 @@ mod tests {
         let big: Vec<u64> = super::collect((0..n).map(|i| i as u64 * 3));
         assert_eq!(big.len(), n);
         assert!(big.iter().enumerate().all(|(i, &v)| v == i as u64 * 3));
-        let zeros: Vec<f64> = super::zeroed(n);
-        assert!(zeros.len() == n && zeros.iter().all(|&z| z == 0.0));
         let mut grown: Vec<u32> = super::with_capacity(super::FROM_BYTES);
         grown.extend(0..super::FROM_BYTES as u32 * 2);
         assert_eq!(

@@ -17,7 +17,6 @@ use crate::accel::PACKET;
 use crate::geometry::Aabb;
 use crate::geometry::cuboid::slab_interval;
 use crate::geometry::mesh::{FacetHit, STREAM};
-use crate::huge_pages;
 
 // A counting group is a packet or a stream, as its rays are.
 const _: () = assert!(STREAM == PACKET);
@@ -66,12 +65,12 @@ impl RayScene {
         // (no pass over them here): each worker faults in and writes its
         // own chunks, a miss's t and ids included.
         let mut hits = Hits {
-            t: huge_pages::zeroed(n),
-            mesh_id: huge_pages::zeroed(n),
-            triangle_id: huge_pages::zeroed(n),
-            u: huge_pages::zeroed(n),
-            v: huge_pages::zeroed(n),
-            normal: huge_pages::zeroed(3 * n),
+            t: vec![0.0; n],
+            mesh_id: vec![0; n],
+            triangle_id: vec![0; n],
+            u: vec![0.0; n],
+            v: vec![0.0; n],
+            normal: vec![0.0; 3 * n],
         };
         let Hits {
             t,
@@ -125,7 +124,7 @@ impl RayScene {
 
     /// Whether each ray hits anything with t in (t_min, t_max).
     pub fn occluded(&self, rays: &Rays, options: &QueryOptions) -> Result<Vec<bool>, QueryError> {
-        let mut blocked = huge_pages::zeroed(rays.len());
+        let mut blocked = vec![false; rays.len()];
         let scale = self.bounds().diagonal();
         options.run(|| {
             blocked
@@ -152,7 +151,7 @@ impl RayScene {
         rays: &Rays,
         options: &QueryOptions,
     ) -> Result<Vec<u32>, QueryError> {
-        let mut counts: Vec<u32> = huge_pages::zeroed(rays.len());
+        let mut counts = vec![0u32; rays.len()];
         let scale = self.bounds().diagonal();
         options.run(|| {
             counts
