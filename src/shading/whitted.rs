@@ -37,14 +37,19 @@ const MAX_NESTING: usize = 8;
 /// through one face and leaves through another.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Media {
-    entered: [(u32, f64); MAX_NESTING],
+    // Materials and their indices side by side, not as (u32, f64) pairs:
+    // without the pairs' padding the stack is small enough to be copied
+    // in registers as a path's rays hand it on, not by a memcpy call.
+    materials: [u32; MAX_NESTING],
+    iors: [f64; MAX_NESTING],
     len: usize,
 }
 
 impl Default for Media {
     fn default() -> Self {
         Media {
-            entered: [(0, 1.0); MAX_NESTING],
+            materials: [0; MAX_NESTING],
+            iors: [1.0; MAX_NESTING],
             len: 0,
         }
     }
@@ -56,14 +61,15 @@ impl Media {
         if self.len == 0 {
             1.0
         } else {
-            self.entered[self.len - 1].1
+            self.iors[self.len - 1]
         }
     }
 
     /// After entering an object of `material` with index `ior`.
     pub fn entering(mut self, material: u32, ior: f64) -> Self {
         if self.len < MAX_NESTING {
-            self.entered[self.len] = (material, ior);
+            self.materials[self.len] = material;
+            self.iors[self.len] = ior;
             self.len += 1;
         }
         self
@@ -72,11 +78,12 @@ impl Media {
     /// After leaving `primitive` (which need not be innermost: overlapping
     /// objects may be left in any order).
     pub fn leaving(mut self, primitive: u32) -> Self {
-        if let Some(i) = self.entered[..self.len]
+        if let Some(i) = self.materials[..self.len]
             .iter()
-            .rposition(|e| e.0 == primitive)
+            .rposition(|&m| m == primitive)
         {
-            self.entered.copy_within(i + 1..self.len, i);
+            self.materials.copy_within(i + 1..self.len, i);
+            self.iors.copy_within(i + 1..self.len, i);
             self.len -= 1;
         }
         self
