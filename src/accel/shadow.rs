@@ -734,11 +734,11 @@ mod tests {
         for i in 0..30 {
             let transform = turn(&mut rng);
             let shape = if i % 2 == 0 {
-                Shape::Cuboid(Box::new(Cuboid {
-                    min: DVec3::splat(-0.5),
-                    max: DVec3::splat(0.5),
+                Shape::Cuboid(Box::new(Cuboid::new(
+                    DVec3::splat(-0.5),
+                    DVec3::splat(0.5),
                     transform,
-                }))
+                )))
             } else {
                 Shape::Cone(Box::new(Cone {
                     base_radius: 0.4,
@@ -750,11 +750,11 @@ mod tests {
             primitives.push(Primitive { shape, material: 0 });
         }
         primitives.push(Primitive {
-            shape: Shape::Cuboid(Box::new(Cuboid {
-                min: DVec3::new(-10.0, -1.0, -10.0),
-                max: DVec3::new(10.0, 0.0, 10.0),
-                transform: Transform::default(),
-            })),
+            shape: Shape::Cuboid(Box::new(Cuboid::new(
+                DVec3::new(-10.0, -1.0, -10.0),
+                DVec3::new(10.0, 0.0, 10.0),
+                Transform::default(),
+            ))),
             material: 0,
         });
         let aggregate = Aggregate::new(primitives);

@@ -25,6 +25,10 @@ pub struct Cuboid {
     pub max: DVec3,
     /// Object to world.
     pub transform: Transform,
+    /// The world unit normal of each face, by `Surface::part` (see
+    /// `inside`): what `transform.normal` gives for the face's axis,
+    /// worked out once, since feelers and CSG ask it of every box they hit.
+    faces: [DVec3; 6],
 }
 
 /// The ray's parameter interval inside the box `[min, max]` as
@@ -59,6 +63,18 @@ pub fn slab_interval(
 }
 
 impl Cuboid {
+    /// The box between `min` and `max` in its own space, placed by
+    /// `transform`.
+    pub fn new(min: DVec3, max: DVec3, transform: Transform) -> Self {
+        let faces = std::array::from_fn(|part| transform.normal(face_axis(part as u8)));
+        Cuboid {
+            min,
+            max,
+            transform,
+            faces,
+        }
+    }
+
     /// The nearest hit in (t_min, t_max), from outside or inside.
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
         let (origin, direction) = self.transform.ray_to_object(ray);
@@ -71,9 +87,7 @@ impl Cuboid {
         } else {
             return None;
         };
-        let mut n = DVec3::ZERO;
-        n[axis] = sign;
-        let normal = self.transform.normal(n);
+        let normal = self.faces[face_part(axis, sign) as usize];
         Some(ShapeHit::geometric(
             t,
             normal,
@@ -91,10 +105,9 @@ impl Cuboid {
     pub fn interval(&self, ray: &Ray) -> Option<Interval> {
         let (origin, direction) = self.transform.ray_to_object(ray);
         let ((t0, a0), (t1, a1)) = slab_interval(origin, direction, self.min, self.max)?;
-        // The part is the face: its axis, and whether it faces +axis.
         let face = |t: f64, axis: usize, sign: f64| Surface {
             t,
-            part: (2 * axis) as u8 + u8::from(sign > 0.0),
+            part: face_part(axis, sign),
         };
         interval(
             face(t0, a0, -direction[a0].signum()),
@@ -104,9 +117,7 @@ impl Cuboid {
 
     /// The outward unit normal of face `s.part` (see `inside`).
     pub fn surface_normal(&self, _ray: &Ray, s: Surface) -> DVec3 {
-        let mut n = DVec3::ZERO;
-        n[usize::from(s.part / 2)] = if s.part % 2 == 1 { 1.0 } else { -1.0 };
-        self.transform.normal(n)
+        self.faces[usize::from(s.part)]
     }
 
     /// Whether one face plane of the box separates the point `apex` and
@@ -148,6 +159,20 @@ impl Cuboid {
     pub fn bounds(&self) -> Aabb {
         placed_bounds(&self.transform, self.min, self.max)
     }
+}
+
+/// The face (`Surface::part`) normal to `axis` that faces along `sign`: the
+/// axis, and whether it faces +axis (a sign that is not positive: −axis).
+#[inline(always)]
+fn face_part(axis: usize, sign: f64) -> u8 {
+    (2 * axis) as u8 + u8::from(sign > 0.0)
+}
+
+/// The object-space outward normal of face `part`.
+fn face_axis(part: u8) -> DVec3 {
+    let mut n = DVec3::ZERO;
+    n[usize::from(part / 2)] = if part % 2 == 1 { 1.0 } else { -1.0 };
+    n
 }
 
 /// Whether one face plane of the object-space box `[min, max]` placed by
@@ -200,11 +225,11 @@ mod tests {
     use glam::DAffine3;
 
     fn unit_box() -> Cuboid {
-        Cuboid {
-            min: DVec3::splat(-1.0),
-            max: DVec3::new(1.0, 2.0, 3.0),
-            transform: Transform::default(),
-        }
+        Cuboid::new(
+            DVec3::splat(-1.0),
+            DVec3::new(1.0, 2.0, 3.0),
+            Transform::default(),
+        )
     }
 
     #[test]
@@ -240,10 +265,12 @@ mod tests {
             glam::DQuat::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 0.7),
             DVec3::new(0.3, -0.2, 0.1),
         );
-        let b = Cuboid {
-            transform: Transform::from_affine(to_world).unwrap(),
-            ..unit_box()
-        };
+        let unit = unit_box();
+        let b = Cuboid::new(
+            unit.min,
+            unit.max,
+            Transform::from_affine(to_world).unwrap(),
+        );
         let inside = |p: DVec3| {
             let q = b.transform.to_object.transform_point3(p);
             q.cmpge(b.min).all() && q.cmple(b.max).all()

@@ -1640,11 +1640,7 @@ impl Check<'_, '_> {
                     );
                     return None;
                 }
-                Shape::Cuboid(Box::new(Cuboid {
-                    min,
-                    max,
-                    transform: transform?,
-                }))
+                Shape::Cuboid(Box::new(Cuboid::new(min, max, transform?)))
             }
             ObjectKind::Cylinder | ObjectKind::Cone => {
                 let (Some(base), Some(cap)) = (&d.base, &d.cap) else {
