@@ -35,6 +35,7 @@ pub struct Cuboid {
 /// ((t_enter, entry axis), (t_exit, exit axis)), or `None` when it misses.
 /// A direction component of 0 leaves that slab open when the origin lies
 /// in it (no 0/0 on its faces).
+#[inline]
 pub fn slab_interval(
     origin: DVec3,
     direction: DVec3,
@@ -42,15 +43,15 @@ pub fn slab_interval(
     max: DVec3,
 ) -> Option<((f64, usize), (f64, usize))> {
     let (mut enter, mut exit) = ((f64::NEG_INFINITY, 0), (f64::INFINITY, 0));
-    for axis in 0..3 {
-        let (o, d) = (origin[axis], direction[axis]);
+    // One slab, narrowing (enter, exit); false when the ray misses it.
+    // Called axis by axis in turn, not looped over: indexing a vector by
+    // a variable axis compiled to a branch per component, and the loop
+    // was not unrolled.
+    let mut slab = |axis: usize, o: f64, d: f64, min: f64, max: f64| {
         if d == 0.0 {
-            if o < min[axis] || o > max[axis] {
-                return None;
-            }
-            continue;
+            return !(o < min || o > max);
         }
-        let (a, b) = ((min[axis] - o) / d, (max[axis] - o) / d);
+        let (a, b) = ((min - o) / d, (max - o) / d);
         let (near, far) = if a <= b { (a, b) } else { (b, a) };
         if near > enter.0 {
             enter = (near, axis);
@@ -58,6 +59,13 @@ pub fn slab_interval(
         if far < exit.0 {
             exit = (far, axis);
         }
+        true
+    };
+    let met = slab(0, origin.x, direction.x, min.x, max.x)
+        && slab(1, origin.y, direction.y, min.y, max.y)
+        && slab(2, origin.z, direction.z, min.z, max.z);
+    if !met {
+        return None;
     }
     (enter.0 <= exit.0).then_some((enter, exit))
 }
