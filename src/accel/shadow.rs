@@ -12,6 +12,7 @@ use glam::DVec3;
 use super::simd::Job;
 use super::{Aggregate, PACKET, Shape, simd};
 use crate::geometry::Aabb;
+use crate::geometry::csg::{ALL_CHILDREN, ChildMask};
 use crate::geometry::sphere::{sphere_blocks, sphere_first_root};
 use crate::math::Ray;
 use crate::math::ray::RELATIVE_OFFSET;
@@ -31,6 +32,9 @@ const BOX_TESTS_PER_FEELER: usize = 1;
 #[derive(Clone, Copy, Debug)]
 pub struct ShadowCandidates {
     primitives: [u32; MAX_CANDIDATES],
+    /// For a CSG candidate, the children that may block (see
+    /// `Csg::children_meeting`); all for others.
+    children: [ChildMask; MAX_CANDIDATES],
     len: usize,
 }
 
@@ -220,6 +224,7 @@ impl Aggregate {
         };
         let mut found = ShadowCandidates {
             primitives: [0; MAX_CANDIDATES],
+            children: [ALL_CHILDREN; MAX_CANDIDATES],
             len: 0,
         };
         for &i in &self.unbounded {
@@ -227,7 +232,7 @@ impl Aggregate {
                 Shape::Plane(p) => hull.may_cross_plane(p.normal, p.distance),
                 _ => true,
             };
-            if blocks && !found.push(i) {
+            if blocks && !found.push(i, ALL_CHILDREN) {
                 return None;
             }
         }
@@ -245,6 +250,7 @@ impl Aggregate {
             |position| {
                 let i = self.leaf_primitives[position];
                 let shape = &self.primitives[i as usize].shape;
+                let mut children = ALL_CHILDREN;
                 let may_block = match shape {
                     // A polygon lies in its plane: the plane test culls the
                     // floor under every point above it.
@@ -271,9 +277,16 @@ impl Aggregate {
                         !c.separates(hull.apex, light, hull.radius + hull.slack)
                             && hull.may_meet_box(&c.bounds())
                     }
+                    // A CSG by its box, then its children by theirs.
+                    Shape::Csg(c) => {
+                        c.bounds().is_none_or(|b| hull.may_meet_box(&b))
+                            && c.children_meeting(|b| hull.may_meet_box(b))
+                                .map(|mask| children = mask)
+                                .is_some()
+                    }
                     _ => shape.bounds().is_none_or(|b| hull.may_meet_box(&b)),
                 };
-                within_budget() && (!may_block || found.push(i))
+                within_budget() && (!may_block || found.push(i, children))
             },
         );
         (complete && budget.get() > 0).then_some(found)
@@ -281,14 +294,48 @@ impl Aggregate {
 }
 
 impl ShadowCandidates {
-    /// Adds `primitive`; false when full.
-    fn push(&mut self, primitive: u32) -> bool {
+    /// Adds `primitive`, of which only `children` may block if it is a
+    /// CSG; false when full.
+    fn push(&mut self, primitive: u32, children: ChildMask) -> bool {
         if self.len == MAX_CANDIDATES {
             return false;
         }
         self.primitives[self.len] = primitive;
+        self.children[self.len] = children;
         self.len += 1;
         true
+    }
+
+    /// The nearest hit of `feeler` on the candidate in `slot` within
+    /// (t_min, t_max), as [`Shape::feeler_hit`] finds it: a CSG's children
+    /// that cannot block left out.
+    #[inline(always)]
+    fn feeler_hit(
+        &self,
+        slot: usize,
+        shape: &Shape,
+        feeler: &Ray,
+        t_min: f64,
+        t_max: f64,
+    ) -> Option<(f64, DVec3, Option<u32>)> {
+        match shape {
+            Shape::Csg(c) => c
+                .nearest_boundary_among(feeler, t_min, t_max, self.children[slot])
+                .map(|b| (b.t, b.normal(feeler), Some(b.material))),
+            _ => shape.feeler_hit(feeler, t_min, t_max),
+        }
+    }
+
+    /// Whether `feeler` meets the candidate in `slot` within (t_min,
+    /// t_max), as [`Shape::occludes`] answers.
+    #[inline(always)]
+    fn occludes(&self, slot: usize, shape: &Shape, feeler: &Ray, t_min: f64, t_max: f64) -> bool {
+        match shape {
+            Shape::Csg(c) => c
+                .nearest_boundary_among(feeler, t_min, t_max, self.children[slot])
+                .is_some(),
+            _ => shape.occludes(feeler, t_min, t_max),
+        }
     }
 
     /// How many primitives may block.
@@ -308,9 +355,11 @@ impl ShadowCandidates {
     pub fn nearest(&self, aggregate: &Aggregate, feeler: &Ray, t_max: f64) -> Option<Blocker> {
         let mut found = None;
         let mut closest = t_max;
-        for &i in &self.primitives[..self.len] {
+        for (slot, &i) in self.primitives[..self.len].iter().enumerate() {
             let p = &aggregate.primitives[i as usize];
-            if let Some((t, normal, material)) = p.shape.feeler_hit(feeler, 0.0, closest) {
+            if let Some((t, normal, material)) =
+                self.feeler_hit(slot, &p.shape, feeler, 0.0, closest)
+            {
                 closest = t;
                 found = Some(Blocker {
                     t,
@@ -327,12 +376,10 @@ impl ShadowCandidates {
     /// front: the next feeler, close beside this one, likely meets it too.
     pub fn any_hit(&mut self, aggregate: &Aggregate, feeler: &Ray, t_max: f64) -> bool {
         for k in 0..self.len {
-            let i = self.primitives[k];
-            if aggregate.primitives[i as usize]
-                .shape
-                .occludes(feeler, 0.0, t_max)
-            {
+            let shape = &aggregate.primitives[self.primitives[k] as usize].shape;
+            if self.occludes(k, shape, feeler, 0.0, t_max) {
                 self.primitives[..=k].rotate_right(1);
+                self.children[..=k].rotate_right(1);
                 return true;
             }
         }
@@ -416,7 +463,7 @@ impl ShadowCandidates {
         feelers: &FeelerBatch<N>,
     ) -> [bool; N] {
         let mut blocked = [false; N];
-        for &i in &self.primitives[..self.len] {
+        for (slot, &i) in self.primitives[..self.len].iter().enumerate() {
             match &aggregate.primitives[i as usize].shape {
                 Shape::Sphere(s) => {
                     let ([x, y, z], [dx, dy, dz]) = (&feelers.origin, &feelers.direction);
@@ -456,7 +503,8 @@ impl ShadowCandidates {
                 shape => {
                     for (k, blocked) in blocked.iter_mut().enumerate() {
                         if feelers.active[k] && !*blocked {
-                            *blocked = shape.occludes(&feelers.ray(k), 0.0, feelers.t_max[k]);
+                            *blocked =
+                                self.occludes(slot, shape, &feelers.ray(k), 0.0, feelers.t_max[k]);
                         }
                     }
                 }
@@ -518,7 +566,7 @@ impl ShadowCandidates {
                         if !feelers.active[k] {
                             continue;
                         }
-                        let hit = shape.feeler_hit(&feelers.ray(k), 0.0, closest[k]);
+                        let hit = self.feeler_hit(slot, shape, &feelers.ray(k), 0.0, closest[k]);
                         if let Some((t, normal, material)) = hit {
                             closest[k] = t;
                             nearest[k] = slot as u32;
@@ -815,6 +863,86 @@ mod tests {
         assert!(
             blocked > compared / 20 && blocked < compared * 19 / 20,
             "{blocked}/{compared}"
+        );
+    }
+
+    /// Dice-like CSGs (a box less, or merged with, a dozen balls; more
+    /// children than go without an index): each feeler's query looks only
+    /// at the children whose boxes meet the hull, and finds the nearest
+    /// surface the full query finds, to the bit.
+    #[test]
+    fn csg_candidates_leave_out_children_off_the_hull_and_answer_the_same() {
+        use crate::geometry::Cuboid;
+        use crate::geometry::csg::{Csg, CsgChild, CsgOp};
+        use crate::math::Transform;
+        let mut rng = PixelRng::new(3, 8, 1);
+        let child = |shape| CsgChild {
+            shape,
+            material: 0,
+            inverse: false,
+        };
+        let mut primitives = Vec::new();
+        for n in 0..6 {
+            let corner = DVec3::new(n as f64 * 1.5 - 4.0, 0.0, (n % 2) as f64 - 0.5);
+            let cube = Cuboid::new(corner, corner + 1.0, Transform::default());
+            let mut children = vec![child(Shape::Cuboid(Box::new(cube)))];
+            for _ in 0..12 {
+                let center = corner + DVec3::new(rng.uniform(), rng.uniform(), rng.uniform());
+                let radius = 0.1 + 0.2 * rng.uniform();
+                children.push(child(Shape::Sphere(Sphere { center, radius })));
+            }
+            let op = if n % 2 == 0 {
+                CsgOp::Difference
+            } else {
+                CsgOp::Merge
+            };
+            primitives.push(Primitive {
+                shape: Shape::Csg(Box::new(Csg::new(op, children))),
+                material: 0,
+            });
+        }
+        let aggregate = Aggregate::new(primitives);
+        let (center, radius) = (DVec3::new(0.5, 6.0, 0.5), 0.8);
+        let (mut narrowed, mut compared, mut hit) = (0, 0, 0);
+        for _ in 0..400 {
+            let apex = DVec3::new(
+                rng.uniform() * 10.0 - 5.0,
+                rng.uniform() * 0.8 - 0.4,
+                rng.uniform() * 3.0 - 1.5,
+            );
+            let to_center = center - apex;
+            let Some(candidates) = aggregate.shadow_candidates(apex, 6, to_center, radius, 64)
+            else {
+                continue;
+            };
+            narrowed += usize::from(
+                candidates.children[..candidates.len]
+                    .iter()
+                    .any(|&m| m != ALL_CHILDREN),
+            );
+            let d2 = to_center.length_squared();
+            let frame = Frame::from_z(to_center / d2.sqrt());
+            let cos_max = (1.0 - radius * radius / d2).sqrt();
+            let strata = Strata::new(16);
+            for i in 0..16 {
+                let direction = uniform_cone(&frame, cos_max, strata.point(i, &mut rng));
+                let feeler = Ray::new(apex, direction);
+                let t_max = to_center.dot(direction);
+                let full = aggregate
+                    .closest_hit(&feeler, t_max)
+                    .map(|h| (h.t, h.normal));
+                let got = candidates
+                    .nearest(&aggregate, &feeler, t_max)
+                    .map(|b| (b.t, b.normal));
+                assert_eq!(got, full, "{apex} {direction}");
+                compared += 1;
+                hit += usize::from(full.is_some());
+            }
+        }
+        assert!(narrowed > 100, "{narrowed}");
+        assert!(
+            hit > compared / 10 && hit < compared * 9 / 10,
+            "{hit}/{compared}"
         );
     }
 

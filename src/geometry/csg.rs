@@ -477,6 +477,18 @@ fn intersection_overlaps(child_bounds: &[Option<Aabb>]) -> bool {
 /// The children that may matter to a query.
 type Candidates = SmallVec<[u32; 8]>;
 
+/// A set of a CSG's children, child i as bit i (those past 64 always in).
+pub type ChildMask = u64;
+
+/// Every child.
+pub const ALL_CHILDREN: ChildMask = ChildMask::MAX;
+
+/// Whether child `i` is in `mask`.
+#[inline(always)]
+fn in_mask(mask: ChildMask, i: usize) -> bool {
+    i >= ChildMask::BITS as usize || mask >> i & 1 == 1
+}
+
 /// Whether `ray` meets `b` with t within `window`.
 #[inline]
 fn meets(ray: &Ray, window: (f64, f64), b: &Aabb) -> bool {
@@ -570,6 +582,32 @@ impl Csg {
         self.bounds
     }
 
+    /// The children that rays staying in a region may meet, for queries
+    /// of many rays there (shadow feelers in their hull): those whose
+    /// boxes pass `may_meet`, which must hold for every box such a ray
+    /// meets; unbounded and inverted children always. `None` when no such
+    /// ray can meet the solid (a difference's first child or one of an
+    /// intersection's left out, or nothing left of a union).
+    pub fn children_meeting(&self, may_meet: impl Fn(&Aabb) -> bool) -> Option<ChildMask> {
+        let mut mask = ALL_CHILDREN;
+        for (i, b) in self.child_bounds.iter().enumerate() {
+            if i >= ChildMask::BITS as usize {
+                break;
+            }
+            if b.is_some_and(|b| !may_meet(&b)) {
+                mask &= !(1 << i);
+            }
+        }
+        let needed = match self.op {
+            CsgOp::Intersection => ALL_CHILDREN,
+            CsgOp::Difference => 1,
+            CsgOp::Union | CsgOp::Merge => 0,
+        };
+        let any_left = self.children.len() > ChildMask::BITS as usize
+            || mask & (ALL_CHILDREN >> (ChildMask::BITS as usize - self.children.len())) != 0;
+        (mask & needed == needed && any_left).then_some(mask)
+    }
+
     /// The children whose intervals along `ray` within `window` may not
     /// be empty, ascending, put in `out`; false when one that must be met
     /// (by an intersection, or a difference's first) is not. `met`: the
@@ -578,13 +616,41 @@ impl Csg {
     /// keeps that to the bit: each operation in it is correctly rounded,
     /// so monotonic, and a box's faces lie outside (or on) those of a box
     /// it holds, so its computed interval holds the other's.
+    /// Only the children in `mask` are looked at: the caller knows the
+    /// others' boxes miss the window (see [`children_meeting`](Self::children_meeting)).
     #[inline]
-    fn candidates(&self, ray: &Ray, window: (f64, f64), met: bool, out: &mut Candidates) -> bool {
+    fn candidates(
+        &self,
+        ray: &Ray,
+        window: (f64, f64),
+        met: bool,
+        mask: ChildMask,
+        out: &mut Candidates,
+    ) -> bool {
         let mut met_bounded = 0;
         match &self.index {
-            None => {
+            Some((bvh, order, unbounded)) if mask.count_ones() as usize > INDEXED_CHILDREN => {
+                out.extend(unbounded.iter().copied());
+                bvh.visit(
+                    |b| meets(ray, window, b),
+                    |position| {
+                        let child = order[position];
+                        let b = self.child_bounds[child as usize];
+                        if in_mask(mask, child as usize)
+                            && b.is_some_and(|b| meets(ray, window, &b))
+                        {
+                            met_bounded += 1;
+                            out.push(child);
+                        }
+                        true
+                    },
+                );
+                out.sort_unstable();
+            }
+            _ => {
                 for (i, b) in self.child_bounds.iter().enumerate() {
                     match b {
+                        _ if !in_mask(mask, i) => {}
                         None => out.push(i as u32),
                         Some(b) if (met && i < self.holding) || meets(ray, window, b) => {
                             met_bounded += 1;
@@ -593,22 +659,6 @@ impl Csg {
                         Some(_) => {}
                     }
                 }
-            }
-            Some((bvh, order, unbounded)) => {
-                out.extend(unbounded.iter().copied());
-                bvh.visit(
-                    |b| meets(ray, window, b),
-                    |position| {
-                        let child = order[position];
-                        let b = self.child_bounds[child as usize];
-                        if b.is_some_and(|b| meets(ray, window, &b)) {
-                            met_bounded += 1;
-                            out.push(child);
-                        }
-                        true
-                    },
-                );
-                out.sort_unstable();
             }
         }
         let all_met = met_bounded == self.bounded_count;
@@ -625,7 +675,7 @@ impl Csg {
     /// solid's). `(−∞, +∞)`: the whole line.
     pub fn spans<'a>(&'a self, ray: &Ray, window: (f64, f64)) -> Spans<'a> {
         let mut work = Work::new(window);
-        self.spans_into(ray, &mut work, false);
+        self.spans_into(ray, &mut work, false, ALL_CHILDREN);
         work.stack
             .iter()
             .map(|s| Span {
@@ -639,10 +689,11 @@ impl Csg {
     /// stops, its list left empty, once nothing of it reaches the window:
     /// the operands still to come can only take away, and intervals
     /// outside the window change no end inside it, here or above.
-    /// `met`: whether this node's box is known to meet the window.
-    fn spans_into<'a>(&'a self, ray: &Ray, work: &mut Work<'a>, met: bool) {
+    /// `met`: whether this node's box is known to meet the window;
+    /// `mask`: the children that may (see `candidates`).
+    fn spans_into<'a>(&'a self, ray: &Ray, work: &mut Work<'a>, met: bool, mask: ChildMask) {
         let mut candidates = Candidates::new();
-        if !self.candidates(ray, work.window, met, &mut candidates) {
+        if !self.candidates(ray, work.window, met, mask, &mut candidates) {
             return;
         }
         let base = work.stack.len();
@@ -719,11 +770,26 @@ impl Csg {
     /// The surface of the nearest hit with t in (t_min, t_max), before
     /// its texture coordinates are found: all a shadow feeler needs.
     pub fn nearest_boundary(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Boundary<'_>> {
+        self.nearest_boundary_among(ray, t_min, t_max, ALL_CHILDREN)
+    }
+
+    /// [`nearest_boundary`](Self::nearest_boundary) when only the children
+    /// in `mask` may meet the ray within (t_min, t_max), as
+    /// [`children_meeting`](Self::children_meeting) found them: the same
+    /// answer (the others' intervals lie outside the window, where they
+    /// change no end inside it), without testing the others' boxes.
+    pub fn nearest_boundary_among(
+        &self,
+        ray: &Ray,
+        t_min: f64,
+        t_max: f64,
+        mask: ChildMask,
+    ) -> Option<Boundary<'_>> {
         if self.bounds.is_some_and(|b| !meets(ray, (t_min, t_max), &b)) {
             return None;
         }
         let mut work = Work::new((t_min, t_max));
-        self.spans_into(ray, &mut work, self.bounds.is_some());
+        self.spans_into(ray, &mut work, self.bounds.is_some(), mask);
         let end = first_end(&work.stack, work.window)?;
         Some(work.boundary(end))
     }
@@ -783,7 +849,7 @@ fn shape_spans_into<'a>(
     match shape {
         // A candidate's box met the window, unless it has none or the
         // child is inverted (then it was not tested).
-        Shape::Csg(c) => c.spans_into(ray, work, !inverse && c.bounds.is_some()),
+        Shape::Csg(c) => c.spans_into(ray, work, !inverse && c.bounds.is_some(), ALL_CHILDREN),
         Shape::Mesh(m) => {
             for (a, b) in m.inside(ray) {
                 let enter = End::of_mesh_hit(&a, true, ray.direction, shape, &mut work.normals);
