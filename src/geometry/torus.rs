@@ -32,6 +32,7 @@ use glam::{DVec2, DVec3};
 use super::cuboid::placed_bounds;
 use super::span::{Intervals, Surface, classify_between_roots};
 use super::{Aabb, ShapeHit};
+use crate::accel::simd::{self, Job};
 use crate::math::{Ray, Transform, transcendental};
 
 /// The most a reported point lies off the surface, relative to R + r.
@@ -50,6 +51,7 @@ pub struct Torus {
 
 impl Torus {
     /// f(p): negative inside the tube, positive outside.
+    #[inline]
     pub fn implicit(&self, p: DVec3) -> f64 {
         let (big, small) = (self.major_radius, self.minor_radius);
         let q = p.length_squared() + big * big - small * small;
@@ -69,6 +71,28 @@ impl Torus {
     /// critical points there too), so a shadow feeler or a closest-hit
     /// query pays for the roots it can use.
     fn roots(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        touches: bool,
+        window: (f64, f64),
+        first: bool,
+    ) -> ArrayVec<f64, 4> {
+        // The search is most of a torus query's time: compiled for AVX2
+        // where the CPU has it (the same operations, so the same bits).
+        simd::kernel().vectorize_job(RootSearch {
+            torus: self,
+            o,
+            d,
+            touches,
+            window,
+            first,
+        })
+    }
+
+    /// [`roots`](Self::roots), compiled into its caller.
+    #[inline(always)]
+    fn roots_here(
         &self,
         o: DVec3,
         d: DVec3,
@@ -138,11 +162,17 @@ impl Torus {
         // most one root. Taken in order, found as they are needed, so a
         // query for the first root stops early.
         let mut from = lo;
-        let mut ends = cuts.windows(2).filter_map(|w| {
-            sign_change_root(&f1, &f2, w[0], w[1], step).filter(|&s| s > lo && s < hi)
-        });
+        // The next piece between cuts to search for a critical point (a
+        // plain loop, not an iterator's closure, so that it is compiled
+        // into the search).
+        let mut piece = 0;
         loop {
-            let critical = ends.next();
+            let mut critical = None;
+            while critical.is_none() && piece + 1 < cuts.len() {
+                critical = sign_change_root(&f1, &f2, cuts[piece], cuts[piece + 1], step)
+                    .filter(|&s| s > lo && s < hi);
+                piece += 1;
+            }
             let to = critical.unwrap_or(hi);
             if let Some(s) = sign_change_root(&f, &f1, from, to, step) {
                 keep(s, &mut roots);
@@ -216,6 +246,27 @@ impl Torus {
     }
 }
 
+/// [`Torus::roots`] as a [`Job`], so that its search is compiled into
+/// the job's runner.
+struct RootSearch<'a> {
+    torus: &'a Torus,
+    o: DVec3,
+    d: DVec3,
+    touches: bool,
+    window: (f64, f64),
+    first: bool,
+}
+
+impl Job for RootSearch<'_> {
+    type Output = ArrayVec<f64, 4>;
+
+    #[inline(always)]
+    fn run(self) -> ArrayVec<f64, 4> {
+        self.torus
+            .roots_here(self.o, self.d, self.touches, self.window, self.first)
+    }
+}
+
 /// The root of `f` in [lo, hi] where f has opposite signs at the ends
 /// (a piece where it is monotone), bracketed until a Newton step inside
 /// it moves less than `tolerance` (or it is two adjacent doubles): Newton
@@ -223,6 +274,7 @@ impl Torus {
 /// narrowing, bisection otherwise. Every value of f only narrows
 /// the bracket by its sign, so the answer is as safe as bisection's, in a
 /// handful of evaluations instead of sixty. `None` without a sign change.
+#[inline(always)]
 fn sign_change_root(
     f: &impl Fn(f64) -> f64,
     df: &impl Fn(f64) -> f64,
