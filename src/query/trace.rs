@@ -235,8 +235,7 @@ impl RayScene {
     /// [`PACKET`]).
     fn nearest_group(&self, rays: &Rays, first: usize, out: &mut [Nearest], scale: f64) {
         let n = out.len();
-        let world: [(DVec3, DVec3); PACKET] =
-            std::array::from_fn(|k| rays.ray(first + k.min(n - 1)));
+        let world: [(DVec3, DVec3); PACKET] = gather(rays, first, n);
         let coherent = coherent(&world[..n], scale);
         // Rays through a scene of one mesh leave the box test to its
         // tree's root (a ray that misses the box finds no hit there
@@ -287,8 +286,7 @@ impl RayScene {
     /// Whether rays `first..first + out.len()` are blocked.
     fn blocked_group(&self, rays: &Rays, first: usize, out: &mut [bool], scale: f64) {
         let n = out.len();
-        let world: [(DVec3, DVec3); PACKET] =
-            std::array::from_fn(|k| rays.ray(first + k.min(n - 1)));
+        let world: [(DVec3, DVec3); PACKET] = gather(rays, first, n);
         let coherent = coherent(&world[..n], scale);
         // As in `nearest_group`.
         let skip_box = self.meshes.len() == 1;
@@ -340,8 +338,7 @@ impl RayScene {
     /// their ends), which sort no children.
     fn count_group(&self, rays: &Rays, first: usize, out: &mut [u32], scale: f64) {
         let n = out.len();
-        let world: [(DVec3, DVec3); STREAM] =
-            std::array::from_fn(|k| rays.ray(first + k.min(n - 1)));
+        let world: [(DVec3, DVec3); STREAM] = gather(rays, first, n);
         let coherent = coherent(&world[..n], scale);
         // As in `nearest_group`.
         let skip_box = self.meshes.len() == 1;
@@ -395,6 +392,18 @@ impl RayScene {
             });
         }
     }
+}
+
+/// Rays `first..first + n` of `rays` (n ≥ 1), lanes past the last
+/// repeating it. A loop: `array::from_fn`'s closure stayed a call per ray,
+/// its result passed through memory.
+#[inline(always)]
+fn gather<const N: usize>(rays: &Rays, first: usize, n: usize) -> [(DVec3, DVec3); N] {
+    let mut world = [(DVec3::ZERO, DVec3::ZERO); N];
+    for (k, ray) in world.iter_mut().enumerate() {
+        *ray = rays.ray(first + k.min(n - 1));
+    }
+    world
 }
 
 /// How far each of `world`'s rays reaches into `placed`: `limit(k)`, or
