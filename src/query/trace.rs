@@ -17,6 +17,7 @@ use crate::accel::PACKET;
 use crate::geometry::Aabb;
 use crate::geometry::cuboid::slab_interval;
 use crate::geometry::mesh::{FacetHit, STREAM};
+use crate::geometry::triangle::WatertightRay;
 
 // A counting group is a packet or a stream, as its rays are.
 const _: () = assert!(STREAM == PACKET);
@@ -135,8 +136,18 @@ impl RayScene {
                         return Err(QueryError::Cancelled);
                     }
                     rays.check_chunk(c * CHUNK, out.len())?;
+                    let mut alone = ByAxes::new();
                     for (g, group) in out.chunks_mut(PACKET).enumerate() {
-                        self.blocked_group(rays, c * CHUNK + g * PACKET, group, scale);
+                        let first = g * PACKET;
+                        self.blocked_group(rays, c * CHUNK, first, group, scale, &mut alone);
+                    }
+                    // The rays left to trace alone, a permutation at a
+                    // time (see `ByAxes`).
+                    if let Some(placed) = self.meshes.first() {
+                        alone.each(|k| {
+                            let (o, d) = rays.ray(c * CHUNK + k);
+                            out[k] = placed.mesh.any_hit(o, d, rays.t_min, rays.t_max);
+                        });
                     }
                     Ok(())
                 })
@@ -162,8 +173,17 @@ impl RayScene {
                         return Err(QueryError::Cancelled);
                     }
                     rays.check_chunk(c * CHUNK, out.len())?;
+                    let mut alone = ByAxes::new();
                     for (g, group) in out.chunks_mut(STREAM).enumerate() {
-                        self.count_group(rays, c * CHUNK + g * STREAM, group, scale);
+                        let first = g * STREAM;
+                        self.count_group(rays, c * CHUNK, first, group, scale, &mut alone);
+                    }
+                    // As in `occluded`.
+                    if let Some(placed) = self.meshes.first() {
+                        alone.each(|k| {
+                            let (o, d) = rays.ray(c * CHUNK + k);
+                            out[k] = placed.mesh.count_hits(o, d, rays.t_min, rays.t_max);
+                        });
                     }
                     Ok(())
                 })
@@ -283,10 +303,20 @@ impl RayScene {
         }
     }
 
-    /// Whether rays `first..first + out.len()` are blocked.
-    fn blocked_group(&self, rays: &Rays, first: usize, out: &mut [bool], scale: f64) {
+    /// Whether rays `chunk + first..chunk + first + out.len()` are
+    /// blocked; rays of a scene of one mesh without a transform to be
+    /// traced alone are left in `alone` (by their index in the chunk).
+    fn blocked_group(
+        &self,
+        rays: &Rays,
+        chunk: usize,
+        first: usize,
+        out: &mut [bool],
+        scale: f64,
+        alone: &mut ByAxes,
+    ) {
         let n = out.len();
-        let world: [(DVec3, DVec3); PACKET] = gather(rays, first, n);
+        let world: [(DVec3, DVec3); PACKET] = gather(rays, chunk + first, n);
         let coherent = coherent(&world[..n], scale);
         // As in `nearest_group`.
         let skip_box = self.meshes.len() == 1;
@@ -321,6 +351,12 @@ impl RayScene {
                 for (k, b) in out.iter_mut().enumerate() {
                     *b |= mask & (1 << k) != 0;
                 }
+            } else if skip_box && placed.transform.is_none() {
+                // Every ray reaches the one mesh with t_max (none held
+                // back by a box test or an earlier mesh).
+                for (k, &(_, d)) in world[..n].iter().enumerate() {
+                    alone.push(first + k, d);
+                }
             } else {
                 for k in (0..n).filter(|&k| reach[k] > f64::NEG_INFINITY) {
                     out[k] = placed
@@ -336,9 +372,21 @@ impl RayScene {
     /// incoherent ones through a large mesh in a stream, otherwise ray by
     /// ray. Every hit is counted, so the any-hit traversals serve (run to
     /// their ends), which sort no children.
-    fn count_group(&self, rays: &Rays, first: usize, out: &mut [u32], scale: f64) {
+    ///
+    /// As in `blocked_group`, the rays start at `chunk + first`, and those
+    /// of a scene of one mesh without a transform to be traced alone are
+    /// left in `alone`.
+    fn count_group(
+        &self,
+        rays: &Rays,
+        chunk: usize,
+        first: usize,
+        out: &mut [u32],
+        scale: f64,
+        alone: &mut ByAxes,
+    ) {
         let n = out.len();
-        let world: [(DVec3, DVec3); STREAM] = gather(rays, first, n);
+        let world: [(DVec3, DVec3); STREAM] = gather(rays, chunk + first, n);
         let coherent = coherent(&world[..n], scale);
         // As in `nearest_group`.
         let skip_box = self.meshes.len() == 1;
@@ -363,6 +411,11 @@ impl RayScene {
                 mesh.count_hits_packet(&local[..n], rays.t_min, &reach[..n], out);
             } else if live > 1 && mesh.memory_bytes() > STREAM_BYTES {
                 mesh.count_hits_stream(&local[..n], rays.t_min, &reach[..n], out);
+            } else if skip_box && placed.transform.is_none() {
+                // Every ray reaches the one mesh with t_max, its count 0.
+                for (k, &(_, d)) in world[..n].iter().enumerate() {
+                    alone.push(first + k, d);
+                }
             } else {
                 for k in (0..n).filter(|&k| reach[k] > f64::NEG_INFINITY) {
                     let (o, d) = local[k];
@@ -390,6 +443,43 @@ impl RayScene {
                     barycentric: h.barycentric,
                 });
             });
+        }
+    }
+}
+
+/// Rays of a chunk to be traced alone, by the watertight test's axis
+/// permutation of each: the single-ray searches are compiled once per
+/// permutation and branch to the ray's, which incoherent rays taken in
+/// their order mispredict (one in six right), and each ray's search then
+/// starts in code another permutation's may have left the cache.
+struct ByAxes {
+    rays: [[u16; CHUNK]; 6],
+    count: [usize; 6],
+}
+
+// Ray indices within a chunk fit the u16 of `ByAxes`.
+const _: () = assert!(CHUNK <= 1 << 16);
+
+impl ByAxes {
+    fn new() -> Self {
+        ByAxes {
+            rays: [[0; CHUNK]; 6],
+            count: [0; 6],
+        }
+    }
+
+    /// Leaves ray `k` (its index in the chunk), of direction `d`.
+    #[inline(always)]
+    fn push(&mut self, k: usize, d: DVec3) {
+        let p = usize::from(WatertightRay::new(DVec3::ZERO, d).permutation());
+        self.rays[p][self.count[p]] = k as u16;
+        self.count[p] += 1;
+    }
+
+    /// Calls `trace` with each ray left, a permutation after another.
+    fn each(&self, mut trace: impl FnMut(usize)) {
+        for (rays, &count) in self.rays.iter().zip(&self.count) {
+            rays[..count].iter().for_each(|&k| trace(usize::from(k)));
         }
     }
 }
