@@ -52,18 +52,8 @@ impl WatertightRay {
     #[inline]
     pub fn new(origin: DVec3, direction: DVec3) -> Self {
         let d = direction.to_array();
-        let a = direction.abs();
-        let kz = if a.x >= a.y && a.x >= a.z {
-            0
-        } else if a.y >= a.z {
-            1
-        } else {
-            2
-        };
-        // Keep the winding of the projected triangle: kx and ky follow kz
-        // in cyclic order, swapped where the ray runs towards −kz.
-        let permutation = 2 * kz as u8 + u8::from(d[kz] < 0.0);
-        let [kx, ky, _] = AXES[usize::from(permutation)];
+        let permutation = axis_permutation(direction);
+        let [kx, ky, kz] = AXES[usize::from(permutation)];
         WatertightRay {
             origin,
             axes: [kx as u8, ky as u8, kz as u8],
@@ -73,6 +63,23 @@ impl WatertightRay {
             sz: 1.0 / d[kz],
         }
     }
+}
+
+/// The axis permutation (index into `AXES`) of the watertight test for
+/// rays along `direction`: kz its largest component's axis, and kx, ky
+/// following kz in cyclic order, swapped where the ray runs towards −kz so
+/// that the projected triangle keeps its winding.
+#[inline]
+pub fn axis_permutation(direction: DVec3) -> u8 {
+    let a = direction.abs();
+    let kz = if a.x >= a.y && a.x >= a.z {
+        0
+    } else if a.y >= a.z {
+        1
+    } else {
+        2
+    };
+    2 * kz as u8 + u8::from(direction[kz] < 0.0)
 }
 
 /// A ray-triangle hit: parameter and barycentric coordinates.

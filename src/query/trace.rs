@@ -17,7 +17,7 @@ use crate::accel::PACKET;
 use crate::geometry::Aabb;
 use crate::geometry::cuboid::slab_interval;
 use crate::geometry::mesh::{FacetHit, STREAM};
-use crate::geometry::triangle::WatertightRay;
+use crate::geometry::triangle::axis_permutation;
 
 // A counting group is a packet or a stream, as its rays are.
 const _: () = assert!(STREAM == PACKET);
@@ -471,7 +471,7 @@ impl ByAxes {
     /// Leaves ray `k` (its index in the chunk), of direction `d`.
     #[inline(always)]
     fn push(&mut self, k: usize, d: DVec3) {
-        let p = usize::from(WatertightRay::new(DVec3::ZERO, d).permutation());
+        let p = usize::from(axis_permutation(d));
         self.rays[p][self.count[p]] = k as u16;
         self.count[p] += 1;
     }
