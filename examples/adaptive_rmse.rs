@@ -8,19 +8,8 @@
 //! render: its kind, setting, RMSE against the reference (linear radiance,
 //! all channels) and the rays it traced (camera rays and all rays).
 
-use prism::render::Film;
 use prism::settings::Adaptive;
 use prism::{RayStats, RenderSettings, Scene, render};
-
-fn rmse(a: &Film, b: &Film) -> f64 {
-    let sum: f64 = a
-        .pixels()
-        .iter()
-        .zip(b.pixels())
-        .map(|(x, y)| (*x - *y).length_squared())
-        .sum();
-    (sum / (3 * a.pixels().len()) as f64).sqrt()
-}
 
 fn total(s: &RayStats) -> u64 {
     s.camera + s.reflection + s.refraction + s.shadow
@@ -52,7 +41,7 @@ fn main() {
     let print = |kind: &str, setting: String, out: prism::RenderOutput| {
         println!(
             "{{\"kind\": \"{kind}\", \"setting\": \"{setting}\", \"rmse\": {:.6e}, \"camera_rays\": {}, \"rays\": {}}}",
-            rmse(&out.film, &reference),
+            out.film.rmse(&reference),
             out.stats.camera,
             total(&out.stats)
         );

@@ -3,8 +3,8 @@
 
 use glam::{DVec2, DVec3};
 
-use crate::math::Ray;
 use crate::math::transcendental;
+use crate::math::{Ray, RayDifferential};
 
 /// Which film axis the field of view spans.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -209,6 +209,16 @@ impl FilmRays {
         let focus = pinhole.at(lens.focus_distance / pinhole.direction.dot(c.forward));
         let origin = pinhole.origin + lens.radius * (disk.x * c.right + disk.y * c.up);
         Ray::new(origin, focus - origin)
+    }
+
+    /// The differential of the ray through film point (x, y) and lens
+    /// point `disk`: the rays `spacing` pixels to the right and below,
+    /// through the same lens point.
+    pub fn differential(&self, x: f64, y: f64, disk: DVec2, spacing: f64) -> RayDifferential {
+        RayDifferential {
+            right: self.ray_through_lens(x + spacing, y, disk),
+            below: self.ray_through_lens(x, y + spacing, disk),
+        }
     }
 
     /// [`ray_through_lens`](Self::ray_through_lens) of `N` film points

@@ -5,7 +5,7 @@
 //! edge-heavy scene, and its keys checked.
 
 use glam::DVec3;
-use prism::render::{Film, Region, render_region};
+use prism::render::{Region, render_region};
 use prism::settings::Adaptive;
 use prism::{RenderSettings, Scene, render};
 
@@ -24,16 +24,6 @@ fn adaptive(threshold: f64, depth: u32, jitter: bool) -> Option<Adaptive> {
         depth,
         jitter,
     })
-}
-
-fn rmse(a: &Film, b: &Film) -> f64 {
-    let sum: f64 = a
-        .pixels()
-        .iter()
-        .zip(b.pixels())
-        .map(|(x, y)| (*x - *y).length_squared())
-        .sum();
-    (sum / (3 * a.pixels().len()) as f64).sqrt()
 }
 
 #[test]
@@ -142,10 +132,7 @@ fn on_edges_it_beats_uniform_sampling_with_fewer_rays() {
         &(),
     )
     .unwrap();
-    let (eu, ea) = (
-        rmse(&uniform.film, &reference),
-        rmse(&adapted.film, &reference),
-    );
+    let (eu, ea) = (uniform.film.rmse(&reference), adapted.film.rmse(&reference));
     let rays = |o: &prism::RenderOutput| o.stats.camera + o.stats.shadow + o.stats.reflection;
     eprintln!(
         "uniform 8 spp: rmse {eu:.4}, {} rays; adaptive 0.2/1: rmse {ea:.4}, {} rays",
@@ -164,7 +151,7 @@ fn on_edges_it_beats_uniform_sampling_with_fewer_rays() {
         &(),
     )
     .unwrap();
-    assert!(rmse(&finer.film, &reference) < 0.7 * ea);
+    assert!(finer.film.rmse(&reference) < 0.7 * ea);
 }
 
 #[test]

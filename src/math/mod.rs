@@ -1,6 +1,7 @@
 //! Thin helpers over glam: rays, orthonormal frames, transforms, sampling and
 //! the per-pixel random streams.
 
+pub mod differential;
 pub mod frame;
 pub mod permutation;
 pub mod ray;
@@ -9,6 +10,7 @@ pub mod sampling;
 pub mod transcendental;
 pub mod transform;
 
+pub use differential::RayDifferential;
 pub use frame::Frame;
 pub use ray::Ray;
 pub use transform::Transform;

@@ -76,6 +76,20 @@ impl Film {
         &self.pixels
     }
 
+    /// The root-mean-square difference from `other` (of the same window),
+    /// over every channel of every pixel: how far a render is from a
+    /// reference.
+    pub fn rmse(&self, other: &Film) -> f64 {
+        assert_eq!(self.window, other.window, "films of different windows");
+        let sum: f64 = self
+            .pixels
+            .iter()
+            .zip(&other.pixels)
+            .map(|(a, b)| (*a - *b).length_squared())
+            .sum();
+        (sum / (3 * self.pixels.len()) as f64).sqrt()
+    }
+
     /// Copies `values` (row-major over `part`, which must lie in the
     /// window) into place.
     pub fn paste(&mut self, part: Region, values: &[DVec3]) {
@@ -91,5 +105,21 @@ impl Film {
         debug_assert!(x >= self.window.x0 && x < self.window.x1);
         debug_assert!(y >= self.window.y0 && y < self.window.y1);
         (y - self.window.y0) as usize * self.window.width() as usize + (x - self.window.x0) as usize
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rmse_is_over_every_channel_of_every_pixel() {
+        let a = Film::new(2, 2);
+        let mut b = Film::new(2, 2);
+        assert_eq!(a.rmse(&b), 0.0);
+        // One channel of one pixel of four off by 2: √(4 / 12).
+        b.set(1, 0, DVec3::new(0.0, 2.0, 0.0));
+        assert!((a.rmse(&b) - (4.0f64 / 12.0).sqrt()).abs() < 1e-15);
+        assert_eq!(a.rmse(&b), b.rmse(&a));
     }
 }

@@ -19,16 +19,16 @@ use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::accel::PACKET;
 use crate::camera::FilmRays;
-use crate::math::Ray;
 use crate::math::permutation::permutation_element;
 use crate::math::rng::PixelRng;
 use crate::math::sampling::{Strata, concentric_disk};
+use crate::math::{Ray, RayDifferential};
 use crate::scene::Scene;
 use crate::shading::whitted::{Recorder, Whitted, WhittedSettings};
 
@@ -245,6 +245,7 @@ pub fn render_row(
     let strata = Strata::new(settings.spp as usize);
     let spp = strata.len();
     let film = scene.camera.film(settings.width, settings.height);
+    let spacing = differential_spacing(tracer, spp);
     let mut x0 = xs.start;
     while x0 < xs.end {
         let n = (xs.end - x0).min(PACKET as u32) as usize;
@@ -273,7 +274,15 @@ pub fn render_row(
                 .aggregate
                 .closest_hit_packet(&rays[..n], f64::INFINITY, &mut hits[..n]);
             for k in 0..n {
-                sums[k] += tracer.camera_radiance(&rays[k], hits[k], &mut rngs[k], stats);
+                let differential =
+                    spacing.map(|h| film.differential(points[k].x, points[k].y, disks[k], h));
+                sums[k] += tracer.camera_radiance(
+                    &rays[k],
+                    differential.as_ref(),
+                    hits[k],
+                    &mut rngs[k],
+                    stats,
+                );
             }
         }
         out.extend(sums[..n].iter().map(|&sum| sum / spp as f64));
@@ -343,9 +352,18 @@ pub fn render_pixel_recorded<R: Recorder>(
             None => (scene, tracer.for_scene(scene)),
         };
         let film = scene.camera.film(settings.width, settings.height);
-        let (ray, lens) = camera_ray(&film, &strata, s, x, y, lens_key, &mut rng);
+        let (ray, lens, differential) = camera_ray(
+            &film,
+            &strata,
+            s,
+            (x, y),
+            lens_key,
+            differential_spacing(&tracer, spp),
+            &mut rng,
+        );
         let radiance = if recorded.is_none_or(|k| k == s) {
-            let r = tracer.radiance_recorded(&ray, &mut rng, stats, recorder);
+            let r =
+                tracer.radiance_recorded(&ray, differential.as_ref(), &mut rng, stats, recorder);
             (
                 recorded_sample.sample,
                 recorded_sample.lens,
@@ -353,7 +371,7 @@ pub fn render_pixel_recorded<R: Recorder>(
             ) = (r, lens, time);
             r
         } else {
-            tracer.radiance(&ray, &mut rng, stats)
+            tracer.radiance_recorded(&ray, differential.as_ref(), &mut rng, stats, &mut ())
         };
         sum += radiance;
     }
@@ -415,24 +433,37 @@ fn instant_of(scene: &Scene, s: usize, spp: usize, key: u32, rng: &mut PixelRng)
 /// the pixel's stream `rng`; with a thin lens, through a point of the lens
 /// stratum [`lens_key`] pairs with it, drawn next from the same stream and
 /// carried onto the lens by the concentric map (which keeps strata
-/// compact). Returns the ray and, with a lens, its point on the lens in
-/// world units along the camera's right and up from the lens centre.
+/// compact). Returns the ray, with a lens its point on the lens in world
+/// units along the camera's right and up from the lens centre, and given
+/// a `spacing` its differential (see [`differential_spacing`]).
+#[allow(clippy::too_many_arguments)]
 fn camera_ray(
     film: &FilmRays,
     strata: &Strata,
     s: usize,
-    x: u32,
-    y: u32,
+    (x, y): (u32, u32),
     lens_key: u32,
+    spacing: Option<f64>,
     rng: &mut PixelRng,
-) -> (Ray, Option<glam::DVec2>) {
+) -> (Ray, Option<glam::DVec2>, Option<RayDifferential>) {
     let (point, lens_point) = camera_sample(film, strata, s, x, y, lens_key, rng);
     let Some(lens) = film.camera().lens else {
-        return (film.ray(point.x, point.y), None);
+        let differential = spacing.map(|h| film.differential(point.x, point.y, DVec2::ZERO, h));
+        return (film.ray(point.x, point.y), None, differential);
     };
     let disk = concentric_disk(lens_point);
     let ray = film.ray_through_lens(point.x, point.y, disk);
-    (ray, Some(lens.radius * disk))
+    let differential = spacing.map(|h| film.differential(point.x, point.y, disk, h));
+    (ray, Some(lens.radius * disk), differential)
+}
+
+/// The film spacing of `spp` stratified samples a pixel, 1/√spp pixels
+/// (pbrt's scaling of camera ray differentials), where `tracer` wants
+/// differentials at all.
+fn differential_spacing(tracer: &Whitted, spp: usize) -> Option<f64> {
+    tracer
+        .wants_differentials()
+        .then(|| 1.0 / (spp as f64).sqrt())
 }
 
 /// The samples of [`camera_ray`]: its film point, in pixels, and its

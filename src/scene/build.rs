@@ -856,8 +856,18 @@ impl Check<'_, '_> {
                 Texture::Solid(color)
             }
             (None, None) => Texture::Solid(color),
-            (Some(ch), None) => {
-                let ch = ch.get_ref();
+            (Some(spanned), None) => {
+                let ch = spanned.get_ref();
+                if ch.mapping == Some(CheckerMapping::Uv) && ch.filter == Some(CheckerFilter::Box) {
+                    self.error(
+                        spanned.span(),
+                        format!(
+                            "material `{name}`: `filter = \"box\"` is for the world checker; \
+                             a `uv` checker has no footprint in texture coordinates and is \
+                             point-sampled (remove `filter`)"
+                        ),
+                    );
+                }
                 let odd = self.color(&ch.color, "checker.color");
                 let size = self.number(&ch.size, 1.0, "checker.size", LENGTH);
                 match ch.mapping {
@@ -870,6 +880,7 @@ impl Check<'_, '_> {
                         even: color,
                         odd,
                         size,
+                        filtered: ch.filter == Some(CheckerFilter::Box),
                     },
                 }
             }

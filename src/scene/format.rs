@@ -171,6 +171,19 @@ pub struct CheckerDesc {
     /// `"world"` (a solid checkerboard in space, the default) or `"uv"`
     /// (squares in texture coordinates).
     pub mapping: Option<CheckerMapping>,
+    /// `"none"` (the colour at the hit point, as POV-Ray; the default) or
+    /// `"box"` (a camera ray sees the checker's mean over its footprint).
+    pub filter: Option<CheckerFilter>,
+}
+
+/// How a checkerboard is sampled.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum CheckerFilter {
+    /// The colour at the point.
+    None,
+    /// The mean over the box around the camera ray's footprint.
+    Box,
 }
 
 /// Where a checkerboard lives.

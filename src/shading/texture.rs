@@ -290,6 +290,10 @@ pub enum Texture {
         odd: DVec3,
         /// Cell side.
         size: f64,
+        /// Whether a camera ray's hit sees the checker's mean over the
+        /// box around its footprint (see [`box_filtered_checker`]) rather
+        /// than the colour at its point.
+        filtered: bool,
     },
     /// A checkerboard of squares of side `size` in texture coordinates.
     UvChecker {
@@ -319,18 +323,43 @@ pub enum Texture {
 }
 
 impl Texture {
+    /// Whether the colour depends on a footprint given to
+    /// [`color`](Self::color) (then the camera's rays carry differentials).
+    pub fn filtered(&self) -> bool {
+        matches!(self, Texture::Checker { filtered: true, .. })
+    }
+
     /// The colour at `point` on a surface with outward `normal` and
     /// texture coordinates `uv` (asked for only by the textures that use
-    /// them).
+    /// them); a [`filtered`](Self::filtered) texture given a `footprint`
+    /// (the point's offsets to its neighbours on the film, ∂p/∂x and
+    /// ∂p/∂y times the sample spacing) averages over it.
     #[inline]
-    pub fn color(&self, point: DVec3, normal: DVec3, uv: impl FnOnce() -> DVec2) -> DVec3 {
+    pub fn color(
+        &self,
+        point: DVec3,
+        normal: DVec3,
+        footprint: Option<[DVec3; 2]>,
+        uv: impl FnOnce() -> DVec2,
+    ) -> DVec3 {
         match *self {
             Texture::Solid(c) => c,
-            Texture::Checker { even, odd, size } => {
+            Texture::Checker {
+                even,
+                odd,
+                size,
+                filtered,
+            } => {
                 // A surface lying exactly on a cell boundary (a floor at
                 // y = 0) would flicker between cells with the rounding of the
                 // hit point; looking a hair inside the surface picks one side.
                 let p = (point - normal * (1e-6 * size)) / size;
+                if let Some([dx, dy]) = footprint.filter(|_| filtered) {
+                    // The box around the footprint's parallelogram (the
+                    // film square of side one spacing): half its sides.
+                    let half = 0.5 * (dx.abs() + dy.abs()) / size;
+                    return box_filtered_checker(p, half, even, odd);
+                }
                 let parity = p.x.floor() + p.y.floor() + p.z.floor();
                 if parity.rem_euclid(2.0) == 0.0 {
                     even
@@ -356,9 +385,53 @@ impl Texture {
     }
 }
 
+/// The mean of the unit 3D checker (`even` where ⌊x⌋ + ⌊y⌋ + ⌊z⌋ is
+/// even, `odd` elsewhere) over the axis-aligned box of centre `p` and
+/// half-sides `half`, in closed form: the checker is `mean + (even −
+/// odd)/2 · s(x)·s(y)·s(z)` with s the square wave ±1 of period 2, and the
+/// mean of a product of functions of one axis each over a box is the
+/// product of their means, each [`square_wave_mean`]. pbrt's closed-form
+/// checkerboard does the same in two dimensions.
+pub fn box_filtered_checker(p: DVec3, half: DVec3, even: DVec3, odd: DVec3) -> DVec3 {
+    let s = square_wave_mean(p.x, half.x)
+        * square_wave_mean(p.y, half.y)
+        * square_wave_mean(p.z, half.z);
+    0.5 * (even + odd) + 0.5 * s * (even - odd)
+}
+
+/// The mean of the square wave s(x) = (−1)^⌊x⌋ over [c − h, c + h]:
+/// (F(c + h) − F(c − h)) / 2h with F its integral, the triangle wave that
+/// rises from 0 to 1 over an even cell and falls back over an odd one.
+/// Below a half-width of 1e-6 cells the interval's mean is its centre's
+/// value (a footprint edge-on to an axis, as a floor's in y; there the
+/// difference of F would be mostly rounding).
+pub fn square_wave_mean(c: f64, h: f64) -> f64 {
+    fn integral(x: f64) -> f64 {
+        let cell = x.floor();
+        let f = x - cell;
+        if cell.rem_euclid(2.0) == 0.0 {
+            f
+        } else {
+            1.0 - f
+        }
+    }
+    if h < 1e-6 {
+        return if c.floor().rem_euclid(2.0) == 0.0 {
+            1.0
+        } else {
+            -1.0
+        };
+    }
+    if h >= 1e9 {
+        return 0.0;
+    }
+    (integral(c + h) - integral(c - h)) / (2.0 * h)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::rng::PixelRng;
 
     #[test]
     fn float_texels_that_are_no_colour_are_made_one() {
@@ -490,25 +563,151 @@ mod tests {
             even: DVec3::ONE,
             odd: DVec3::ZERO,
             size: 2.0,
+            filtered: false,
         };
         let n = DVec3::Y;
         assert_eq!(
-            t.color(DVec3::new(1.0, 0.0, 1.0), n, || DVec2::ZERO),
+            t.color(DVec3::new(1.0, 0.0, 1.0), n, None, || DVec2::ZERO),
             DVec3::ZERO
         );
         assert_eq!(
-            t.color(DVec3::new(3.0, 0.0, 1.0), n, || DVec2::ZERO),
+            t.color(DVec3::new(3.0, 0.0, 1.0), n, None, || DVec2::ZERO),
             DVec3::ONE
         );
         assert_eq!(
-            t.color(DVec3::new(-1.0, 0.0, 1.0), n, || DVec2::ZERO),
+            t.color(DVec3::new(-1.0, 0.0, 1.0), n, None, || DVec2::ZERO),
             DVec3::ONE
         );
         // Rounding noise around y = 0 does not change the cell.
         for dy in [-1e-15, 0.0, 1e-15] {
             assert_eq!(
-                t.color(DVec3::new(1.0, dy, 1.0), n, || DVec2::ZERO),
+                t.color(DVec3::new(1.0, dy, 1.0), n, None, || DVec2::ZERO),
                 DVec3::ZERO
+            );
+        }
+    }
+
+    /// The mean of s over [c − h, c + h] by the midpoint rule on a fine grid.
+    fn square_wave_mean_brute(c: f64, h: f64) -> f64 {
+        let n = 200_000;
+        let sum: f64 = (0..n)
+            .map(|k| {
+                let x = c - h + 2.0 * h * (k as f64 + 0.5) / n as f64;
+                if x.floor().rem_euclid(2.0) == 0.0 {
+                    1.0
+                } else {
+                    -1.0
+                }
+            })
+            .sum();
+        sum / n as f64
+    }
+
+    #[test]
+    fn square_wave_mean_matches_hand_values_and_brute_force() {
+        // By hand: [0, 1] is all of an even cell, [0.5, 1.5] half and
+        // half, [0.5, 2.0] two thirds odd, [−0.25, 0.75] one quarter odd.
+        assert_eq!(square_wave_mean(0.5, 0.5), 1.0);
+        assert_eq!(square_wave_mean(1.0, 0.5), 0.0);
+        assert!((square_wave_mean(1.25, 0.75) - (0.5 - 1.0) / 1.5).abs() < 1e-15);
+        assert!((square_wave_mean(0.25, 0.5) - 0.5).abs() < 1e-15);
+        // A whole period averages to nothing wherever it starts.
+        for c in [-3.3, 0.0, 0.7, 12.25] {
+            assert!(square_wave_mean(c, 1.0).abs() < 1e-12, "{c}");
+        }
+        // Narrower than 1e-6 cells: the point's own value.
+        assert_eq!(square_wave_mean(0.3, 1e-7), 1.0);
+        assert_eq!(square_wave_mean(1.3, 0.0), -1.0);
+        let mut rng = PixelRng::new(0x5eed, 3, 4);
+        for _ in 0..40 {
+            let c = (rng.uniform() - 0.5) * 40.0;
+            let h = 1e-3 + rng.uniform() * 3.0;
+            let (f, b) = (square_wave_mean(c, h), square_wave_mean_brute(c, h));
+            assert!((f - b).abs() < 1e-4, "c {c} h {h}: {f} against {b}");
+        }
+    }
+
+    #[test]
+    fn box_filtered_checker_is_the_mean_of_the_point_checker_over_the_box() {
+        let (even, odd) = (DVec3::new(0.9, 0.8, 0.1), DVec3::new(0.1, 0.2, 0.3));
+        let point = Texture::Checker {
+            even,
+            odd,
+            size: 1.0,
+            filtered: false,
+        };
+        let mut rng = PixelRng::new(0x5eed, 7, 1);
+        let n = 60;
+        for _ in 0..6 {
+            let c = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 6.0 - 3.0;
+            let h = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 1.5 + 0.05;
+            // The point checker's mean over an n³ grid of the box's cells'
+            // midpoints (the normal only nudges the point by 1e-6).
+            let mut sum = DVec3::ZERO;
+            for i in 0..n {
+                for j in 0..n {
+                    for k in 0..n {
+                        let f = (DVec3::new(i as f64, j as f64, k as f64) + 0.5) / n as f64;
+                        let p = c - h + 2.0 * h * f;
+                        sum += point.color(p, DVec3::ZERO, None, || DVec2::ZERO);
+                    }
+                }
+            }
+            let brute = sum / (n * n * n) as f64;
+            let closed = box_filtered_checker(c, h, even, odd);
+            // The grid's error: each cell face crossing the box costs up
+            // to one grid slab in n.
+            assert!(
+                (closed - brute).abs().max_element() < 0.05,
+                "centre {c} half {h}: {closed} against {brute}"
+            );
+        }
+        // A box far wider than the cells sees the mean colour; a flat one
+        // (a floor's footprint, no extent in y) the product over x and z.
+        let wide = box_filtered_checker(DVec3::splat(0.3), DVec3::splat(1e4), even, odd);
+        assert!((wide - 0.5 * (even + odd)).abs().max_element() < 1e-3);
+        let flat = box_filtered_checker(
+            DVec3::new(0.5, 0.5, 0.5),
+            DVec3::new(0.5, 0.0, 0.5),
+            even,
+            odd,
+        );
+        assert!((flat - even).abs().max_element() < 1e-15, "{flat}");
+    }
+
+    #[test]
+    fn a_filtered_checker_without_footprint_is_the_point_checker() {
+        let (even, odd) = (DVec3::ONE, DVec3::ZERO);
+        let filtered = Texture::Checker {
+            even,
+            odd,
+            size: 0.5,
+            filtered: true,
+        };
+        let point = Texture::Checker {
+            even,
+            odd,
+            size: 0.5,
+            filtered: false,
+        };
+        assert!(filtered.filtered() && !point.filtered());
+        let mut rng = PixelRng::new(0x5eed, 9, 9);
+        for _ in 0..100 {
+            let p = DVec3::new(rng.uniform(), 0.0, rng.uniform()) * 10.0;
+            let footprint = Some([DVec3::new(0.3, 0.0, 0.1), DVec3::new(-0.1, 0.0, 0.2)]);
+            // Unfiltered textures ignore the footprint; a footprint of no
+            // size gives the point's colour.
+            assert_eq!(
+                point.color(p, DVec3::Y, footprint, || DVec2::ZERO),
+                point.color(p, DVec3::Y, None, || DVec2::ZERO)
+            );
+            assert_eq!(
+                filtered.color(p, DVec3::Y, None, || DVec2::ZERO),
+                point.color(p, DVec3::Y, None, || DVec2::ZERO)
+            );
+            assert_eq!(
+                filtered.color(p, DVec3::Y, Some([DVec3::ZERO; 2]), || DVec2::ZERO),
+                point.color(p, DVec3::Y, None, || DVec2::ZERO)
             );
         }
     }

@@ -16,10 +16,10 @@ use super::{Fresnel, Material};
 use crate::accel::{Blocker, FeelerBatch, ShadowCandidates, simd};
 use crate::geometry::Hit;
 use crate::lights::{Light, LightSample, LightSampler, SAMPLE_BATCH};
-use crate::math::Ray;
 use crate::math::ray::SpawnOrigins;
 use crate::math::rng::PixelRng;
 use crate::math::sampling::Strata;
+use crate::math::{Ray, RayDifferential};
 use crate::scene::Scene;
 use crate::stats::RayStats;
 
@@ -104,6 +104,9 @@ pub struct WhittedSettings {
 pub struct Whitted<'a> {
     scene: &'a Scene,
     settings: WhittedSettings,
+    /// Whether some material's texture averages over a footprint, so
+    /// camera rays should come with their differentials.
+    filters: bool,
 }
 
 /// What kind of ray `trace` follows.
@@ -257,45 +260,78 @@ struct Split {
 impl<'a> Whitted<'a> {
     /// A tracer for `scene`.
     pub fn new(scene: &'a Scene, settings: WhittedSettings) -> Self {
-        Whitted { scene, settings }
+        let filters = scene
+            .materials
+            .iter()
+            .any(|m| m.texture.filtered() || m.emission.filtered());
+        Whitted {
+            scene,
+            settings,
+            filters,
+        }
     }
 
     /// The same tracer for another scene (an instant of an open shutter).
     pub fn for_scene<'b>(&self, scene: &'b Scene) -> Whitted<'b> {
+        // The instants share the scene's materials (a key changes values,
+        // never whether a texture is filtered).
         Whitted {
             scene,
             settings: self.settings,
+            filters: self.filters,
         }
+    }
+
+    /// Whether the camera's rays should come with their differentials
+    /// (some texture averages over the footprint they give); without one,
+    /// a differential is not looked at.
+    pub fn wants_differentials(&self) -> bool {
+        self.filters
     }
 
     /// The colour seen along a camera ray.
     pub fn radiance(&self, ray: &Ray, rng: &mut PixelRng, stats: &mut RayStats) -> DVec3 {
-        self.radiance_recorded(ray, rng, stats, &mut ())
+        self.radiance_recorded(ray, None, rng, stats, &mut ())
     }
 
-    /// [`radiance`](Self::radiance), telling `recorder` every step.
+    /// [`radiance`](Self::radiance) of a camera ray with its
+    /// `differential` (for filtered textures at its first hit), telling
+    /// `recorder` every step.
     pub fn radiance_recorded<R: Recorder>(
         &self,
         ray: &Ray,
+        differential: Option<&RayDifferential>,
         rng: &mut PixelRng,
         stats: &mut RayStats,
         recorder: &mut R,
     ) -> DVec3 {
-        self.trace(ray, PathState::camera(), rng, stats, recorder)
+        let color = self.trace_inner(ray, PathState::camera(), differential, rng, stats, recorder);
+        recorder.done(color);
+        color
     }
 
     /// The colour seen along camera ray `ray` whose first hit, `hit`, is
     /// already known (what the aggregate's `closest_hit` answers for it
-    /// without limit): to the bit what [`radiance`](Self::radiance) gives.
+    /// without limit): to the bit what
+    /// [`radiance_recorded`](Self::radiance_recorded) gives.
     pub fn camera_radiance(
         &self,
         ray: &Ray,
+        differential: Option<&RayDifferential>,
         hit: Option<Hit>,
         rng: &mut PixelRng,
         stats: &mut RayStats,
     ) -> DVec3 {
         stats.camera += 1;
-        self.shade(ray, PathState::camera(), hit, rng, stats, &mut ())
+        self.shade(
+            ray,
+            PathState::camera(),
+            differential,
+            hit,
+            rng,
+            stats,
+            &mut (),
+        )
     }
 
     fn trace<R: Recorder>(
@@ -306,7 +342,7 @@ impl<'a> Whitted<'a> {
         stats: &mut RayStats,
         rec: &mut R,
     ) -> DVec3 {
-        let color = self.trace_inner(ray, path, rng, stats, rec);
+        let color = self.trace_inner(ray, path, None, rng, stats, rec);
         rec.done(color);
         color
     }
@@ -315,6 +351,7 @@ impl<'a> Whitted<'a> {
         &self,
         ray: &Ray,
         path: PathState,
+        differential: Option<&RayDifferential>,
         rng: &mut PixelRng,
         stats: &mut RayStats,
         rec: &mut R,
@@ -326,15 +363,20 @@ impl<'a> Whitted<'a> {
         }
         rec.ray(path.kind, path.depth, path.weight, ray);
         let hit = self.scene.aggregate.closest_hit(ray, f64::INFINITY);
-        self.shade(ray, path, hit, rng, stats, rec)
+        self.shade(ray, path, differential, hit, rng, stats, rec)
     }
 
     /// The colour along `ray` from its first hit on: the local model,
-    /// and the reflected and refracted rays traced on.
+    /// and the reflected and refracted rays traced on. Only a camera ray
+    /// brings a `differential`: reflected and refracted rays point-sample
+    /// textures (their footprints would need the differentials carried
+    /// through each bounce).
+    #[allow(clippy::too_many_arguments)]
     fn shade<R: Recorder>(
         &self,
         ray: &Ray,
         path: PathState,
+        differential: Option<&RayDifferential>,
         hit: Option<Hit>,
         rng: &mut PixelRng,
         stats: &mut RayStats,
@@ -349,6 +391,9 @@ impl<'a> Whitted<'a> {
         let aggregate = &self.scene.aggregate;
         // Shading normal faces the incoming ray; "entering" by the sign of I·N.
         let entering = ray.direction.dot(hit.normal) < 0.0;
+        let footprint = differential
+            .filter(|_| self.filters)
+            .and_then(|d| d.footprint(hit.point, hit.normal));
         let point = ShadingPoint {
             hit,
             // Shade with the (possibly interpolated) shading normal, on the
@@ -362,7 +407,7 @@ impl<'a> Whitted<'a> {
             material,
             od: material
                 .texture
-                .color(hit.point, hit.normal, || aggregate.uv(&hit))
+                .color(hit.point, hit.normal, footprint, || aggregate.uv(&hit))
                 * hit.color,
         };
 
@@ -371,7 +416,7 @@ impl<'a> Whitted<'a> {
         rec.ambient(color);
         let emitted = material
             .emission
-            .color(hit.point, hit.normal, || aggregate.uv(&hit));
+            .color(hit.point, hit.normal, footprint, || aggregate.uv(&hit));
         rec.emission(emitted);
         color += emitted;
         for (index, light) in self.scene.lights.iter().enumerate() {
