@@ -212,12 +212,12 @@ impl FilmRays {
     }
 
     /// The differential of the ray through film point (x, y) and lens
-    /// point `disk`: the rays `spacing` pixels to the right and below,
-    /// through the same lens point.
-    pub fn differential(&self, x: f64, y: f64, disk: DVec2, spacing: f64) -> RayDifferential {
+    /// point `disk`: the rays `spacing.x` pixels to the right and
+    /// `spacing.y` below, through the same lens point.
+    pub fn differential(&self, x: f64, y: f64, disk: DVec2, spacing: DVec2) -> RayDifferential {
         RayDifferential {
-            right: self.ray_through_lens(x + spacing, y, disk),
-            below: self.ray_through_lens(x, y + spacing, disk),
+            right: self.ray_through_lens(x + spacing.x, y, disk),
+            below: self.ray_through_lens(x, y + spacing.y, disk),
         }
     }
 

@@ -279,9 +279,12 @@ fn lattice_sample<R: Recorder>(
     // 0.35, 0.7, 1 and 2 times the spacing needed more rays for the same
     // error, bench/README.md).
     let differential = tracer.wants_differentials().then(|| {
-        camera
-            .film(settings.width, settings.height)
-            .differential(x, y, disk, 0.5 * spacing / scale)
+        camera.film(settings.width, settings.height).differential(
+            x,
+            y,
+            disk,
+            DVec2::splat(0.5 * spacing / scale),
+        )
     });
     LatticeSample {
         radiance: tracer.radiance_recorded(&ray, differential.as_ref(), &mut rng, stats, recorder),

@@ -245,7 +245,6 @@ pub fn render_row(
     let strata = Strata::new(settings.spp as usize);
     let spp = strata.len();
     let film = scene.camera.film(settings.width, settings.height);
-    let spacing = differential_spacing(tracer, spp);
     let mut x0 = xs.start;
     while x0 < xs.end {
         let n = (xs.end - x0).min(PACKET as u32) as usize;
@@ -270,6 +269,7 @@ pub fn render_row(
                 }
             }
             film.rays_through_lens(&points, &disks, &mut rays);
+            let spacing = differential_spacing(tracer, &strata, s);
             scene
                 .aggregate
                 .closest_hit_packet(&rays[..n], f64::INFINITY, &mut hits[..n]);
@@ -358,7 +358,7 @@ pub fn render_pixel_recorded<R: Recorder>(
             s,
             (x, y),
             lens_key,
-            differential_spacing(&tracer, spp),
+            differential_spacing(&tracer, &strata, s),
             &mut rng,
         );
         let radiance = if recorded.is_none_or(|k| k == s) {
@@ -443,7 +443,7 @@ fn camera_ray(
     s: usize,
     (x, y): (u32, u32),
     lens_key: u32,
-    spacing: Option<f64>,
+    spacing: Option<DVec2>,
     rng: &mut PixelRng,
 ) -> (Ray, Option<glam::DVec2>, Option<RayDifferential>) {
     let (point, lens_point) = camera_sample(film, strata, s, x, y, lens_key, rng);
@@ -457,13 +457,12 @@ fn camera_ray(
     (ray, Some(lens.radius * disk), differential)
 }
 
-/// The film spacing of `spp` stratified samples a pixel, 1/√spp pixels
-/// (pbrt's scaling of camera ray differentials), where `tracer` wants
-/// differentials at all.
-fn differential_spacing(tracer: &Whitted, spp: usize) -> Option<f64> {
-    tracer
-        .wants_differentials()
-        .then(|| 1.0 / (spp as f64).sqrt())
+/// The film spacing of sample `s` of a pixel's `strata`, where `tracer`
+/// wants differentials at all: its stratum's sides, so the footprints of
+/// a pixel's samples tile it (pbrt scales the differentials by 1/√spp,
+/// the same for square counts; 2 spp are two half-pixel columns).
+fn differential_spacing(tracer: &Whitted, strata: &Strata, s: usize) -> Option<DVec2> {
+    tracer.wants_differentials().then(|| strata.cell(s).1)
 }
 
 /// The samples of [`camera_ray`]: its film point, in pixels, and its
