@@ -264,3 +264,28 @@ def test_only_regular_files_are_loaded(tmp_path):
         with pytest.raises(prism.SceneError) as e:
             prism.load(path)
         assert "not a regular file" in str(e.value) and path in str(e.value), str(e.value)
+
+
+def test_from_dict_takes_a_box_filtered_checker():
+    # A floor seen at a low angle: its far rows alias when point-sampled
+    # (black or white) and turn to the mean grey when box-filtered.
+    def floor(**checker):
+        d = small()
+        d["render"].update(width=48, height=24, ambient=[1, 1, 1], background=[0, 0, 0])
+        d["camera"] = {"position": [0.3, 1.0, 6.0], "look_at": [0, 0.6, 0], "fov": 50}
+        d["lights"] = {}
+        d["materials"] = {"floor": {"color": [1, 1, 1], "ka": 1, "kd": 0,
+                                    "checker": dict(color=[0, 0, 0], size=0.5, **checker)}}
+        d["objects"] = [{"type": "plane", "normal": [0, 1, 0], "distance": 0, "material": "floor"}]
+        return prism.Scene.from_dict(d)
+
+    point = np.asarray(floor().render(progress=False))
+    box = np.asarray(floor(filter="box").render(progress=False))
+    rows = [y for y in range(24) if point[y].max() > 0]
+    far = slice(rows[0] + 1, rows[0] + 3)
+    assert set(np.unique(point[far])) <= {0.0, 1.0}
+    assert np.abs(box[far] - 0.5).max() < 0.1
+    with pytest.raises(prism.SceneError, match="world checker"):
+        floor(filter="box", mapping="uv")
+    with pytest.raises(prism.SceneError):
+        floor(filter="gauss")
