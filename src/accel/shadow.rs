@@ -424,10 +424,13 @@ impl<const N: usize> FeelerBatch<N> {
         self.active[k] = active;
     }
 
-    /// Lane `k` as a ray.
+    /// Lane `k` as a ray. The arrays are borrowed, not bound by value:
+    /// `let [x, y, z] = self.origin` copied all six 16-lane arrays (768
+    /// bytes) to the stack at every call, once per lane and candidate.
+    #[inline(always)]
     fn ray(&self, k: usize) -> Ray {
-        let [x, y, z] = self.origin;
-        let [dx, dy, dz] = self.direction;
+        let [x, y, z] = &self.origin;
+        let [dx, dy, dz] = &self.direction;
         Ray {
             origin: DVec3::new(x[k], y[k], z[k]),
             direction: DVec3::new(dx[k], dy[k], dz[k]),
