@@ -100,14 +100,48 @@ impl Cone {
         out
     }
 
+    /// The nearest of [`crossings`](Self::crossings) in (t_min, t_max):
+    /// the same values taken in the same order (the first of equal ones
+    /// kept), without building the list, which was returned by value.
+    #[inline(always)]
+    fn nearest_crossing(&self, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<(f64, DVec3)> {
+        let mut best: Option<(f64, DVec3)> = None;
+        let mut consider = |t: f64, n: DVec3| {
+            if t > t_min && t < t_max && best.is_none_or(|(b, _)| t.total_cmp(&b).is_lt()) {
+                best = Some((t, n));
+            }
+        };
+        let (r0, k) = (self.base_radius, self.slope());
+        let ro = r0 + k * o.z;
+        let a = d.x * d.x + d.y * d.y - k * k * d.z * d.z;
+        let b = 2.0 * (o.x * d.x + o.y * d.y - k * d.z * ro);
+        let c = o.x * o.x + o.y * o.y - ro * ro;
+        if let Some((t0, t1)) = quadratic_roots(a, b, c) {
+            let roots = [t0, t1];
+            let distinct = if t0 == t1 { &roots[..1] } else { &roots[..] };
+            for &t in distinct {
+                let p = o + t * d;
+                if (0.0..=1.0).contains(&p.z) {
+                    consider(t, DVec3::new(p.x, p.y, -k * (r0 + k * p.z)));
+                }
+            }
+        }
+        if !self.open && d.z != 0.0 {
+            for (z, r, n) in [(0.0, r0, -DVec3::Z), (1.0, self.cap_radius, DVec3::Z)] {
+                let t = (z - o.z) / d.z;
+                let p = o + t * d;
+                if r > 0.0 && p.x * p.x + p.y * p.y <= r * r {
+                    consider(t, n);
+                }
+            }
+        }
+        best
+    }
+
     /// The nearest hit in (t_min, t_max), from outside or inside.
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
         let (o, d) = self.transform.ray_to_object(ray);
-        let (t, n) = self
-            .crossings(o, d)
-            .into_iter()
-            .filter(|(t, _)| *t > t_min && *t < t_max)
-            .min_by(|a, b| a.0.total_cmp(&b.0))?;
+        let (t, n) = self.nearest_crossing(o, d, t_min, t_max)?;
         let normal = self.transform.normal(n);
         Some(ShapeHit::geometric(
             t,
