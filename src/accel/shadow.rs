@@ -564,6 +564,24 @@ impl ShadowCandidates {
                         nearest[k] = if hit { slot as u32 } else { nearest[k] };
                     }
                 }
+                // Cones and cylinders: every lane at once too.
+                Shape::Cone(c) => {
+                    let (met, t, part) =
+                        c.nearest_crossings(&feelers.origin, &feelers.direction, &closest);
+                    for k in 0..N {
+                        if !feelers.active[k] || !met[k] {
+                            continue;
+                        }
+                        closest[k] = t[k];
+                        nearest[k] = slot as u32;
+                        let normal = c.crossing_normal(&feelers.ray(k), t[k], part[k]);
+                        found[k] = Some(Blocker {
+                            t: t[k],
+                            normal,
+                            material: p.material,
+                        });
+                    }
+                }
                 shape => {
                     for k in 0..N {
                         if !feelers.active[k] {
@@ -757,6 +775,82 @@ mod tests {
     /// Turned boxes and cylinders and a floor slab: the face-plane culling
     /// drops only what cannot block, for points on the slab, in the air and
     /// on the solids themselves (feelers from their far sides included).
+    #[test]
+    fn batched_cones_answer_as_each_feeler_alone_to_the_bit() {
+        // Cones, cylinders and tips (capped and open, turned and stretched)
+        // met by batches of feelers from points around, inside and on
+        // them: `nearest_batch` (every lane at once) gives each lane the
+        // blocker `nearest` gives that feeler alone, bit for bit.
+        use crate::geometry::Cone;
+        use crate::math::Transform;
+        use glam::{DAffine3, DQuat};
+        let mut rng = PixelRng::new(3, 8, 5);
+        let mut primitives = Vec::new();
+        for i in 0..12 {
+            let axis = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) - 0.5;
+            let transform = Transform::from_affine(DAffine3::from_scale_rotation_translation(
+                DVec3::new(
+                    0.3 + rng.uniform(),
+                    0.3 + rng.uniform(),
+                    0.3 + rng.uniform(),
+                ),
+                DQuat::from_axis_angle(axis.normalize(), rng.uniform() * 3.0),
+                DVec3::new(
+                    rng.uniform() * 2.0 - 1.0,
+                    rng.uniform(),
+                    rng.uniform() * 2.0 - 1.0,
+                ),
+            ))
+            .unwrap();
+            primitives.push(Primitive {
+                shape: Shape::Cone(Box::new(Cone {
+                    base_radius: 0.4 * (i % 4) as f64,
+                    cap_radius: 0.2 * (i % 3) as f64 + 0.1 * f64::from(u8::from(i % 4 == 0)),
+                    open: i % 5 == 0,
+                    transform,
+                })),
+                material: i,
+            });
+        }
+        let aggregate = Aggregate::new(primitives);
+        let candidates = ShadowCandidates {
+            primitives: std::array::from_fn(|i| (i % 12) as u32),
+            children: [ALL_CHILDREN; MAX_CANDIDATES],
+            len: 12,
+        };
+        let (mut lanes, mut met) = (0, 0);
+        for round in 0..400 {
+            let apex = DVec3::new(
+                rng.uniform() * 3.0 - 1.5,
+                rng.uniform() * 1.5,
+                rng.uniform() * 3.0 - 1.5,
+            );
+            let mut batch = FeelerBatch::<16>::default();
+            for lane in 0..16 {
+                let direction =
+                    (DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) - 0.5).normalize();
+                // Some lanes share an axis-parallel direction (d.z = 0 in
+                // a cone's space is rare; a world axis is not).
+                let direction = if lane == 3 { DVec3::Y } else { direction };
+                let ray = Ray::new(apex, direction);
+                batch.set(
+                    lane,
+                    &ray,
+                    0.5 + rng.uniform() * 4.0,
+                    (lane + round) % 7 != 0,
+                );
+            }
+            let got = candidates.nearest_batch(&aggregate, &batch);
+            for lane in (0..16).filter(|&l| batch.active[l]) {
+                let alone = candidates.nearest(&aggregate, &batch.ray(lane), batch.t_max[lane]);
+                assert_eq!(got[lane], alone, "round {round} lane {lane}");
+                lanes += 1;
+                met += usize::from(alone.is_some());
+            }
+        }
+        assert!(met > lanes / 10 && met < lanes * 9 / 10, "{met}/{lanes}");
+    }
+
     #[test]
     fn candidates_among_boxes_and_cylinders_answer_as_the_full_queries_do() {
         use crate::geometry::{Cone, Cuboid};

@@ -138,6 +138,106 @@ impl Cone {
         best
     }
 
+    /// For each of `N` rays (origins and directions by coordinate, as a
+    /// structure of arrays), the nearest crossing in (0, t_max[k]) as
+    /// [`nearest_crossing`](Self::nearest_crossing) finds it, without a
+    /// branch (every case computed, then chosen by masks and selects), so
+    /// that the loop over the rays compiles to vector code: the same
+    /// operations on the same values lane by lane, so the same bits.
+    /// Each lane gives (met, t, part): the side, the base or the cap
+    /// (see [`crossing_normal`](Self::crossing_normal)).
+    #[inline(always)]
+    pub fn nearest_crossings<const N: usize>(
+        &self,
+        origin: &[[f64; N]; 3],
+        direction: &[[f64; N]; 3],
+        t_max: &[f64; N],
+    ) -> ([bool; N], [f64; N], [u8; N]) {
+        let (mut met, mut best, mut part) = ([false; N], [0.0; N], [SIDE; N]);
+        let m = &self.transform.to_object;
+        let (r0, k) = (self.base_radius, self.slope());
+        let r1 = self.cap_radius;
+        for lane in 0..N {
+            let o = m.transform_point3(DVec3::new(
+                origin[0][lane],
+                origin[1][lane],
+                origin[2][lane],
+            ));
+            let d = m.transform_vector3(DVec3::new(
+                direction[0][lane],
+                direction[1][lane],
+                direction[2][lane],
+            ));
+            let ro = r0 + k * o.z;
+            let a = d.x * d.x + d.y * d.y - k * k * d.z * d.z;
+            let b = 2.0 * (o.x * d.x + o.y * d.y - k * d.z * ro);
+            let c = o.x * o.x + o.y * o.y - ro * ro;
+            // `quadratic_roots`, both of its cases worked out.
+            let linear = a == 0.0;
+            let t_linear = -c / b;
+            let discriminant = b * b - 4.0 * a * c;
+            let q = -0.5 * (b + discriminant.sqrt().copysign(b));
+            let (u0, u1) = (q / a, c / q);
+            let (s0, s1) = if u0 <= u1 { (u0, u1) } else { (u1, u0) };
+            let (s0, s1) = if q == 0.0 { (0.0, 0.0) } else { (s0, s1) };
+            let has_roots = if linear {
+                b != 0.0
+            } else {
+                // Not negative (a NaN goes on, as there).
+                discriminant >= 0.0 || discriminant.is_nan()
+            };
+            let (t0, t1) = if linear {
+                (t_linear, t_linear)
+            } else {
+                (s0, s1)
+            };
+            let limit = t_max[lane];
+            let (mut found, mut nearest, mut which) = (false, 0.0, SIDE);
+            let mut consider = |ok: bool, t: f64, p: u8| {
+                let take = ok & (t > 0.0) & (t < limit) & (!found | (t < nearest));
+                found |= take;
+                nearest = if take { t } else { nearest };
+                which = if take { p } else { which };
+            };
+            let z0 = (o + t0 * d).z;
+            consider(has_roots & (0.0..=1.0).contains(&z0), t0, SIDE);
+            let z1 = (o + t1 * d).z;
+            consider(has_roots & (t0 != t1) & (0.0..=1.0).contains(&z1), t1, SIDE);
+            let caps = !self.open & (d.z != 0.0);
+            for (z, r, p) in [(0.0, r0, BASE), (1.0, r1, CAP)] {
+                let t = (z - o.z) / d.z;
+                let at = o + t * d;
+                consider(
+                    caps & (r > 0.0) & (at.x * at.x + at.y * at.y <= r * r),
+                    t,
+                    p,
+                );
+            }
+            met[lane] = found;
+            best[lane] = nearest;
+            part[lane] = which;
+        }
+        (met, best, part)
+    }
+
+    /// The unit world normal of the crossing of `ray` at `t` on `part`
+    /// (see [`nearest_crossings`](Self::nearest_crossings)), as
+    /// [`intersect`](Self::intersect) gives it.
+    #[inline]
+    pub fn crossing_normal(&self, ray: &Ray, t: f64, part: u8) -> DVec3 {
+        let n = match part {
+            BASE => -DVec3::Z,
+            CAP => DVec3::Z,
+            _ => {
+                let (o, d) = self.transform.ray_to_object(ray);
+                let (r0, k) = (self.base_radius, self.slope());
+                let p = o + t * d;
+                DVec3::new(p.x, p.y, -k * (r0 + k * p.z))
+            }
+        };
+        self.transform.normal(n)
+    }
+
     /// The nearest hit in (t_min, t_max), from outside or inside.
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<ShapeHit> {
         let (o, d) = self.transform.ray_to_object(ray);
