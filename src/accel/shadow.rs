@@ -772,9 +772,6 @@ mod tests {
         );
     }
 
-    /// Turned boxes and cylinders and a floor slab: the face-plane culling
-    /// drops only what cannot block, for points on the slab, in the air and
-    /// on the solids themselves (feelers from their far sides included).
     #[test]
     fn batched_cones_answer_as_each_feeler_alone_to_the_bit() {
         // Cones, cylinders and tips (capped and open, turned and stretched)
@@ -851,6 +848,9 @@ mod tests {
         assert!(met > lanes / 10 && met < lanes * 9 / 10, "{met}/{lanes}");
     }
 
+    /// Turned boxes and cylinders and a floor slab: the face-plane culling
+    /// drops only what cannot block, for points on the slab, in the air and
+    /// on the solids themselves (feelers from their far sides included).
     #[test]
     fn candidates_among_boxes_and_cylinders_answer_as_the_full_queries_do() {
         use crate::geometry::{Cone, Cuboid};
