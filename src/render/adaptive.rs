@@ -276,7 +276,7 @@ fn lattice_sample<R: Recorder>(
     // For a filtered texture, a sample stands for a square of half its
     // level's spacing: half a pixel at the pixel corners, a quarter at
     // their centres, … (on bench/edges.toml with its checker filtered,
-    // 0.35, 0.7, 1 and 2 times the spacing needed more rays for the same
+    // 0.35, 0.7, 1 and 2 times the spacing did no better for the same
     // error, bench/README.md).
     let differential = tracer.wants_differentials().then(|| {
         camera.film(settings.width, settings.height).differential(
