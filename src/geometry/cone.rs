@@ -69,40 +69,30 @@ impl Cone {
         self.cap_radius - self.base_radius
     }
 
-    /// Every crossing of the ray (in object space) with the surface, as
-    /// (t, object-space outward normal), in no particular order.
-    pub fn crossings(&self, o: DVec3, d: DVec3) -> arrayvec::ArrayVec<(f64, DVec3), 4> {
-        let mut out = arrayvec::ArrayVec::new();
+    /// The side's quadratic a·t² + b·t + c = 0 along the object-space ray
+    /// (o, d): x² + y² = (r0 + k·z)², one expression for every query so
+    /// that each finds the same roots to the bit.
+    #[inline(always)]
+    fn side_quadratic(&self, o: DVec3, d: DVec3) -> (f64, f64, f64) {
         let (r0, k) = (self.base_radius, self.slope());
         let ro = r0 + k * o.z;
         let a = d.x * d.x + d.y * d.y - k * k * d.z * d.z;
         let b = 2.0 * (o.x * d.x + o.y * d.y - k * d.z * ro);
         let c = o.x * o.x + o.y * o.y - ro * ro;
-        if let Some((t0, t1)) = quadratic_roots(a, b, c) {
-            let roots = [t0, t1];
-            let distinct = if t0 == t1 { &roots[..1] } else { &roots[..] };
-            for &t in distinct {
-                let p = o + t * d;
-                if (0.0..=1.0).contains(&p.z) {
-                    out.push((t, DVec3::new(p.x, p.y, -k * (r0 + k * p.z))));
-                }
-            }
-        }
-        if !self.open && d.z != 0.0 {
-            for (z, r, n) in [(0.0, r0, -DVec3::Z), (1.0, self.cap_radius, DVec3::Z)] {
-                let t = (z - o.z) / d.z;
-                let p = o + t * d;
-                if r > 0.0 && p.x * p.x + p.y * p.y <= r * r {
-                    out.push((t, n));
-                }
-            }
-        }
-        out
+        (a, b, c)
     }
 
-    /// The nearest of [`crossings`](Self::crossings) in (t_min, t_max):
-    /// the same values taken in the same order (the first of equal ones
-    /// kept), without building the list, which was returned by value.
+    /// The side's outward normal at object-space point `p`, not unit.
+    #[inline(always)]
+    fn side_normal(&self, p: DVec3) -> DVec3 {
+        let (r0, k) = (self.base_radius, self.slope());
+        DVec3::new(p.x, p.y, -k * (r0 + k * p.z))
+    }
+
+    /// The nearest crossing of the object-space ray (o, d) with the
+    /// surface in (t_min, t_max), as (t, object-space outward normal): the
+    /// side's roots in ascending order, then the base and the cap, the
+    /// first of equal ones kept.
     #[inline(always)]
     fn nearest_crossing(&self, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<(f64, DVec3)> {
         let mut best: Option<(f64, DVec3)> = None;
@@ -111,23 +101,22 @@ impl Cone {
                 best = Some((t, n));
             }
         };
-        let (r0, k) = (self.base_radius, self.slope());
-        let ro = r0 + k * o.z;
-        let a = d.x * d.x + d.y * d.y - k * k * d.z * d.z;
-        let b = 2.0 * (o.x * d.x + o.y * d.y - k * d.z * ro);
-        let c = o.x * o.x + o.y * o.y - ro * ro;
+        let (a, b, c) = self.side_quadratic(o, d);
         if let Some((t0, t1)) = quadratic_roots(a, b, c) {
             let roots = [t0, t1];
             let distinct = if t0 == t1 { &roots[..1] } else { &roots[..] };
             for &t in distinct {
                 let p = o + t * d;
                 if (0.0..=1.0).contains(&p.z) {
-                    consider(t, DVec3::new(p.x, p.y, -k * (r0 + k * p.z)));
+                    consider(t, self.side_normal(p));
                 }
             }
         }
         if !self.open && d.z != 0.0 {
-            for (z, r, n) in [(0.0, r0, -DVec3::Z), (1.0, self.cap_radius, DVec3::Z)] {
+            for (z, r, n) in [
+                (0.0, self.base_radius, -DVec3::Z),
+                (1.0, self.cap_radius, DVec3::Z),
+            ] {
                 let t = (z - o.z) / d.z;
                 let p = o + t * d;
                 if r > 0.0 && p.x * p.x + p.y * p.y <= r * r {
@@ -155,8 +144,7 @@ impl Cone {
     ) -> ([bool; N], [f64; N], [u8; N]) {
         let (mut met, mut best, mut part) = ([false; N], [0.0; N], [SIDE; N]);
         let m = &self.transform.to_object;
-        let (r0, k) = (self.base_radius, self.slope());
-        let r1 = self.cap_radius;
+        let (r0, r1) = (self.base_radius, self.cap_radius);
         for lane in 0..N {
             let o = m.transform_point3(DVec3::new(
                 origin[0][lane],
@@ -168,10 +156,7 @@ impl Cone {
                 direction[1][lane],
                 direction[2][lane],
             ));
-            let ro = r0 + k * o.z;
-            let a = d.x * d.x + d.y * d.y - k * k * d.z * d.z;
-            let b = 2.0 * (o.x * d.x + o.y * d.y - k * d.z * ro);
-            let c = o.x * o.x + o.y * o.y - ro * ro;
+            let (a, b, c) = self.side_quadratic(o, d);
             // `quadratic_roots`, both of its cases worked out.
             let linear = a == 0.0;
             let t_linear = -c / b;
@@ -230,9 +215,7 @@ impl Cone {
             CAP => DVec3::Z,
             _ => {
                 let (o, d) = self.transform.ray_to_object(ray);
-                let (r0, k) = (self.base_radius, self.slope());
-                let p = o + t * d;
-                DVec3::new(p.x, p.y, -k * (r0 + k * p.z))
+                self.side_normal(o + t * d)
             }
         };
         self.transform.normal(n)
@@ -258,11 +241,7 @@ impl Cone {
     pub fn inside(&self, ray: &Ray) -> Intervals {
         let (o, d) = self.transform.ray_to_object(ray);
         let inf = f64::INFINITY;
-        let (r0, k) = (self.base_radius, self.slope());
-        let ro = r0 + k * o.z;
-        let a = d.x * d.x + d.y * d.y - k * k * d.z * d.z;
-        let b = 2.0 * (o.x * d.x + o.y * d.y - k * d.z * ro);
-        let c = o.x * o.x + o.y * o.y - ro * ro;
+        let (a, b, c) = self.side_quadratic(o, d);
         let mut side: arrayvec::ArrayVec<(f64, f64), 2> = arrayvec::ArrayVec::new();
         if a == 0.0 {
             match b {
@@ -325,11 +304,9 @@ impl Cone {
             CAP => DVec3::Z,
             _ => {
                 let (o, d) = self.transform.ray_to_object(ray);
-                let (r0, k) = (self.base_radius, self.slope());
-                let p = o + s.t * d;
-                DVec3::new(p.x, p.y, -k * (r0 + k * p.z))
+                self.side_normal(o + s.t * d)
                     .try_normalize()
-                    .unwrap_or(DVec3::Z * k.signum())
+                    .unwrap_or(DVec3::Z * self.slope().signum())
             }
         };
         self.transform.normal(n)

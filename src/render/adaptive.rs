@@ -260,32 +260,23 @@ fn lattice_sample<R: Recorder>(
         (&scene.motion[k], Some(k))
     };
     let tracer = tracer.for_scene(scene);
-    let camera = &scene.camera;
-    let (ray, lens, disk) = match camera.lens {
+    let film = scene.camera.film(settings.width, settings.height);
+    let (ray, lens, disk) = match film.camera().lens {
         Some(lens) => {
             let disk = concentric_disk(DVec2::new(rng.uniform(), rng.uniform()));
-            let ray = camera.ray_through_lens(x, y, settings.width, settings.height, disk);
+            let ray = film.ray_through_lens(x, y, disk);
             (ray, Some(lens.radius * disk), disk)
         }
-        None => (
-            camera.ray(x, y, settings.width, settings.height),
-            None,
-            DVec2::ZERO,
-        ),
+        None => (film.ray(x, y), None, DVec2::ZERO),
     };
     // For a filtered texture, a sample stands for a square of half its
     // level's spacing: half a pixel at the pixel corners, a quarter at
     // their centres, … (on bench/edges.toml with its checker filtered,
     // 0.35, 0.7, 1 and 2 times the spacing did no better for the same
     // error, bench/README.md).
-    let differential = tracer.wants_differentials().then(|| {
-        camera.film(settings.width, settings.height).differential(
-            x,
-            y,
-            disk,
-            DVec2::splat(0.5 * spacing / scale),
-        )
-    });
+    let differential = tracer
+        .wants_differentials()
+        .then(|| film.differential(x, y, disk, DVec2::splat(0.5 * spacing / scale)));
     LatticeSample {
         radiance: tracer.radiance_recorded(&ray, differential.as_ref(), &mut rng, stats, recorder),
         lens,

@@ -447,14 +447,16 @@ fn camera_ray(
     rng: &mut PixelRng,
 ) -> (Ray, Option<glam::DVec2>, Option<RayDifferential>) {
     let (point, lens_point) = camera_sample(film, strata, s, x, y, lens_key, rng);
-    let Some(lens) = film.camera().lens else {
-        let differential = spacing.map(|h| film.differential(point.x, point.y, DVec2::ZERO, h));
-        return (film.ray(point.x, point.y), None, differential);
+    let (ray, lens, disk) = match film.camera().lens {
+        None => (film.ray(point.x, point.y), None, DVec2::ZERO),
+        Some(lens) => {
+            let disk = concentric_disk(lens_point);
+            let ray = film.ray_through_lens(point.x, point.y, disk);
+            (ray, Some(lens.radius * disk), disk)
+        }
     };
-    let disk = concentric_disk(lens_point);
-    let ray = film.ray_through_lens(point.x, point.y, disk);
     let differential = spacing.map(|h| film.differential(point.x, point.y, disk, h));
-    (ray, Some(lens.radius * disk), differential)
+    (ray, lens, differential)
 }
 
 /// The film spacing of sample `s` of a pixel's `strata`, where `tracer`
