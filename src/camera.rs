@@ -225,62 +225,115 @@ impl FilmRays {
     /// and lens points at once (`disks` is ignored without a lens), to the
     /// bit: the same operations in the same order, written lane by lane so
     /// that the batch's divisions and square roots, a chain of them per
-    /// ray, run side by side instead of one ray waiting on the last.
+    /// ray, run side by side instead of one ray waiting on the last (in
+    /// vector code where the caller is compiled for it).
+    #[inline(always)]
     pub fn rays_through_lens<const N: usize>(
         &self,
         points: &[DVec2; N],
         disks: &[DVec2; N],
-        out: &mut [Ray; N],
+        out: &mut RayLanes<N>,
     ) {
         let c = &self.camera;
         if !matches!(c.projection, Projection::Perspective { .. }) {
-            for ((ray, p), disk) in out.iter_mut().zip(points).zip(disks) {
-                *ray = self.ray_through_lens(p.x, p.y, *disk);
+            for (k, (p, disk)) in points.iter().zip(disks).enumerate() {
+                out.set(k, &self.ray_through_lens(p.x, p.y, *disk));
             }
             return;
         }
-        let lanes = |f: &dyn Fn(usize) -> f64| -> [f64; N] { std::array::from_fn(f) };
+        // The coordinates apart first, as the lanes below read them.
+        let (px, py) = (lanes::<N>(|k| points[k].x), lanes::<N>(|k| points[k].y));
         // The pinhole ray's direction, as in `ray`, then normalised as
         // `Ray::new` does: times the reciprocal of its length.
-        let a = lanes(&|k| (2.0 * points[k].x / self.w - 1.0) * self.half_w + self.ox);
-        let b = lanes(&|k| (1.0 - 2.0 * points[k].y / self.h) * self.half_h + self.oy);
-        let dx = lanes(&|k| c.forward.x + a[k] * c.right.x + b[k] * c.up.x);
-        let dy = lanes(&|k| c.forward.y + a[k] * c.right.y + b[k] * c.up.y);
-        let dz = lanes(&|k| c.forward.z + a[k] * c.right.z + b[k] * c.up.z);
-        let recip = lanes(&|k| 1.0 / (dx[k] * dx[k] + dy[k] * dy[k] + dz[k] * dz[k]).sqrt());
+        let a = lanes::<N>(|k| (2.0 * px[k] / self.w - 1.0) * self.half_w + self.ox);
+        let b = lanes::<N>(|k| (1.0 - 2.0 * py[k] / self.h) * self.half_h + self.oy);
+        let dx = lanes::<N>(|k| c.forward.x + a[k] * c.right.x + b[k] * c.up.x);
+        let dy = lanes::<N>(|k| c.forward.y + a[k] * c.right.y + b[k] * c.up.y);
+        let dz = lanes::<N>(|k| c.forward.z + a[k] * c.right.z + b[k] * c.up.z);
+        let recip = lanes::<N>(|k| 1.0 / (dx[k] * dx[k] + dy[k] * dy[k] + dz[k] * dz[k]).sqrt());
         let (dx, dy, dz) = (
-            lanes(&|k| dx[k] * recip[k]),
-            lanes(&|k| dy[k] * recip[k]),
-            lanes(&|k| dz[k] * recip[k]),
+            lanes::<N>(|k| dx[k] * recip[k]),
+            lanes::<N>(|k| dy[k] * recip[k]),
+            lanes::<N>(|k| dz[k] * recip[k]),
         );
+        let p = c.position;
         let Some(lens) = c.lens else {
-            for (k, ray) in out.iter_mut().enumerate() {
-                *ray = Ray {
-                    origin: c.position,
-                    direction: DVec3::new(dx[k], dy[k], dz[k]),
-                };
-            }
+            out.origin = [[p.x; N], [p.y; N], [p.z; N]];
+            out.direction = [dx, dy, dz];
             return;
         };
-        let p = c.position;
         let f = c.forward;
-        let t = lanes(&|k| lens.focus_distance / (dx[k] * f.x + dy[k] * f.y + dz[k] * f.z));
-        let u = lanes(&|k| disks[k].x);
-        let v = lanes(&|k| disks[k].y);
-        let ox = lanes(&|k| p.x + lens.radius * (u[k] * c.right.x + v[k] * c.up.x));
-        let oy = lanes(&|k| p.y + lens.radius * (u[k] * c.right.y + v[k] * c.up.y));
-        let oz = lanes(&|k| p.z + lens.radius * (u[k] * c.right.z + v[k] * c.up.z));
-        let ex = lanes(&|k| (p.x + t[k] * dx[k]) - ox[k]);
-        let ey = lanes(&|k| (p.y + t[k] * dy[k]) - oy[k]);
-        let ez = lanes(&|k| (p.z + t[k] * dz[k]) - oz[k]);
-        let recip = lanes(&|k| 1.0 / (ex[k] * ex[k] + ey[k] * ey[k] + ez[k] * ez[k]).sqrt());
-        for (k, ray) in out.iter_mut().enumerate() {
-            *ray = Ray {
-                origin: DVec3::new(ox[k], oy[k], oz[k]),
-                direction: DVec3::new(ex[k] * recip[k], ey[k] * recip[k], ez[k] * recip[k]),
-            };
+        let t = lanes::<N>(|k| lens.focus_distance / (dx[k] * f.x + dy[k] * f.y + dz[k] * f.z));
+        let u = lanes::<N>(|k| disks[k].x);
+        let v = lanes::<N>(|k| disks[k].y);
+        let ox = lanes::<N>(|k| p.x + lens.radius * (u[k] * c.right.x + v[k] * c.up.x));
+        let oy = lanes::<N>(|k| p.y + lens.radius * (u[k] * c.right.y + v[k] * c.up.y));
+        let oz = lanes::<N>(|k| p.z + lens.radius * (u[k] * c.right.z + v[k] * c.up.z));
+        let ex = lanes::<N>(|k| (p.x + t[k] * dx[k]) - ox[k]);
+        let ey = lanes::<N>(|k| (p.y + t[k] * dy[k]) - oy[k]);
+        let ez = lanes::<N>(|k| (p.z + t[k] * dz[k]) - oz[k]);
+        let recip = lanes::<N>(|k| 1.0 / (ex[k] * ex[k] + ey[k] * ey[k] + ez[k] * ez[k]).sqrt());
+        out.origin = [ox, oy, oz];
+        out.direction = [
+            lanes::<N>(|k| ex[k] * recip[k]),
+            lanes::<N>(|k| ey[k] * recip[k]),
+            lanes::<N>(|k| ez[k] * recip[k]),
+        ];
+    }
+}
+
+/// `N` rays, coordinate by coordinate (`origin[axis][k]` of ray k): what
+/// [`FilmRays::rays_through_lens`] fills. Apart from the rays, because
+/// writing each lane's `Ray` where the lanes are computed turned the
+/// compiler's vector code back into one lane at a time.
+#[derive(Clone, Copy, Debug)]
+pub struct RayLanes<const N: usize> {
+    /// Origins, by axis then lane.
+    pub origin: [[f64; N]; 3],
+    /// Unit directions, by axis then lane.
+    pub direction: [[f64; N]; 3],
+}
+
+impl<const N: usize> Default for RayLanes<N> {
+    fn default() -> Self {
+        RayLanes {
+            origin: [[0.0; N]; 3],
+            direction: [[0.0; N]; 3],
         }
     }
+}
+
+impl<const N: usize> RayLanes<N> {
+    /// Ray `k`.
+    #[inline]
+    pub fn ray(&self, k: usize) -> Ray {
+        let (o, d) = (&self.origin, &self.direction);
+        Ray {
+            origin: DVec3::new(o[0][k], o[1][k], o[2][k]),
+            direction: DVec3::new(d[0][k], d[1][k], d[2][k]),
+        }
+    }
+
+    /// Sets ray `k`.
+    #[inline]
+    pub fn set(&mut self, k: usize, ray: &Ray) {
+        for axis in 0..3 {
+            self.origin[axis][k] = ray.origin[axis];
+            self.direction[axis][k] = ray.direction[axis];
+        }
+    }
+}
+
+/// `[f(0), …, f(N − 1)]`, by a plain loop that the compiler turns into
+/// vector code once `f` is inlined (through `&dyn Fn` or
+/// `array::from_fn` it stayed one lane at a time).
+#[inline(always)]
+fn lanes<const N: usize>(f: impl Fn(usize) -> f64) -> [f64; N] {
+    let mut out = [0.0; N];
+    for (k, value) in out.iter_mut().enumerate() {
+        *value = f(k);
+    }
+    out
 }
 
 impl Camera {
@@ -481,16 +534,17 @@ mod tests {
                 let disks: [DVec2; 8] = std::array::from_fn(|_| {
                     crate::math::sampling::concentric_disk(DVec2::new(rng.uniform(), rng.uniform()))
                 });
-                let mut rays = [Ray::new(DVec3::ZERO, DVec3::Z); 8];
+                let mut rays = RayLanes::<8>::default();
                 film.rays_through_lens(&points, &disks, &mut rays);
                 for k in 0..8 {
                     let one = film.ray_through_lens(points[k].x, points[k].y, disks[k]);
+                    let ray = rays.ray(k);
                     assert_eq!(
-                        rays[k].origin.to_array().map(f64::to_bits),
+                        ray.origin.to_array().map(f64::to_bits),
                         one.origin.to_array().map(f64::to_bits)
                     );
                     assert_eq!(
-                        rays[k].direction.to_array().map(f64::to_bits),
+                        ray.direction.to_array().map(f64::to_bits),
                         one.direction.to_array().map(f64::to_bits)
                     );
                 }

@@ -26,7 +26,7 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
 ///
 /// Plain multiplies and adds in a fixed order: the same bits on every CPU,
 /// within a few units in the last place of sin and cos.
-#[inline]
+#[inline(always)]
 pub fn sin_cos_turns(t: f64) -> (f64, f64) {
     const ROUND: f64 = 6_755_399_441_055_744.0; // 1.5·2⁵²
     let quarters = 4.0 * t;

@@ -24,8 +24,9 @@ use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::accel::PACKET;
-use crate::camera::FilmRays;
-use crate::math::permutation::permutation_element;
+use crate::accel::simd::{self, Job};
+use crate::camera::{FilmRays, RayLanes};
+use crate::math::permutation::{Permutation, permutation_element};
 use crate::math::rng::PixelRng;
 use crate::math::sampling::{Strata, concentric_disk};
 use crate::math::{Ray, RayDifferential};
@@ -250,9 +251,11 @@ pub fn render_row(
         let n = (xs.end - x0).min(PACKET as u32) as usize;
         let mut rngs: [PixelRng; PACKET] =
             std::array::from_fn(|k| PixelRng::new(seed, x0 + k.min(n - 1) as u32, y));
-        let lens_keys: [u32; PACKET] = std::array::from_fn(|k| lens_key(scene, &mut rngs[k]));
+        let lens_orders: [Permutation; PACKET] =
+            std::array::from_fn(|k| Permutation::new(spp as u32, lens_key(scene, &mut rngs[k])));
         let mut sums = [DVec3::ZERO; PACKET];
         let mut rays = [Ray::new(DVec3::ZERO, DVec3::Z); PACKET];
+        let mut lanes = RayLanes::default();
         let mut hits = [None; PACKET];
         // Lanes past `n` (a row's last, short packet) are traced by no one.
         let mut points = [glam::DVec2::ZERO; PACKET];
@@ -260,15 +263,18 @@ pub fn render_row(
         for s in 0..spp {
             for (k, rng) in rngs.iter_mut().enumerate().take(n) {
                 let x = x0 + k as u32;
-                (points[k], disks[k]) = camera_sample(&film, &strata, s, x, y, lens_keys[k], rng);
+                (points[k], disks[k]) =
+                    camera_sample(&film, &strata, s, x, y, &lens_orders[k], rng);
             }
-            if film.camera().lens.is_some() {
-                // Apart from the draws: the lanes' maps run side by side.
-                for disk in &mut disks[..n] {
-                    *disk = concentric_disk(*disk);
-                }
+            simd::kernel().vectorize_job(LensRays {
+                film: &film,
+                points: &points,
+                disks: &mut disks,
+                rays: &mut lanes,
+            });
+            for (k, ray) in rays.iter_mut().enumerate().take(n) {
+                *ray = lanes.ray(k);
             }
-            film.rays_through_lens(&points, &disks, &mut rays);
             let spacing = differential_spacing(tracer, &strata, s);
             scene
                 .aggregate
@@ -287,6 +293,33 @@ pub fn render_row(
         }
         out.extend(sums[..n].iter().map(|&sum| sum / spp as f64));
         x0 += n as u32;
+    }
+}
+
+/// The camera rays of a packet's lanes from their film points and lens
+/// points (of the unit square), as [`camera_ray`] makes each: the lanes'
+/// concentric maps and rays side by side, in vector code on the AVX2 path
+/// (the same operations, so the same bits on every path). A job of its
+/// own: inlined into the draws before it, it was left one lane at a time.
+struct LensRays<'a> {
+    film: &'a FilmRays,
+    points: &'a [DVec2; PACKET],
+    disks: &'a mut [DVec2; PACKET],
+    rays: &'a mut RayLanes<PACKET>,
+}
+
+impl Job for LensRays<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        if self.film.camera().lens.is_some() {
+            for disk in self.disks.iter_mut() {
+                *disk = concentric_disk(*disk);
+            }
+        }
+        self.film
+            .rays_through_lens(self.points, self.disks, self.rays);
     }
 }
 
@@ -332,7 +365,7 @@ pub fn render_pixel_recorded<R: Recorder>(
     let mut rng = PixelRng::new(frame_seed(settings.seed, settings.frame), x, y);
     let strata = Strata::new(settings.spp as usize);
     let spp = strata.len();
-    let lens_key = lens_key(scene, &mut rng);
+    let lens_order = Permutation::new(spp as u32, lens_key(scene, &mut rng));
     let time_key = time_key(scene, &mut rng);
     let mut sum = DVec3::ZERO;
     let mut recorded_sample = RecordedPixel {
@@ -357,7 +390,7 @@ pub fn render_pixel_recorded<R: Recorder>(
             &strata,
             s,
             (x, y),
-            lens_key,
+            &lens_order,
             differential_spacing(&tracer, &strata, s),
             &mut rng,
         );
@@ -442,11 +475,11 @@ fn camera_ray(
     strata: &Strata,
     s: usize,
     (x, y): (u32, u32),
-    lens_key: u32,
+    lens_order: &Permutation,
     spacing: Option<DVec2>,
     rng: &mut PixelRng,
 ) -> (Ray, Option<glam::DVec2>, Option<RayDifferential>) {
-    let (point, lens_point) = camera_sample(film, strata, s, x, y, lens_key, rng);
+    let (point, lens_point) = camera_sample(film, strata, s, x, y, lens_order, rng);
     let (ray, lens, disk) = match film.camera().lens {
         None => (film.ray(point.x, point.y), None, DVec2::ZERO),
         Some(lens) => {
@@ -477,7 +510,7 @@ fn camera_sample(
     s: usize,
     x: u32,
     y: u32,
-    lens_key: u32,
+    lens_order: &Permutation,
     rng: &mut PixelRng,
 ) -> (glam::DVec2, glam::DVec2) {
     let offset = if strata.len() == 1 {
@@ -489,8 +522,7 @@ fn camera_sample(
     if film.camera().lens.is_none() {
         return (point, glam::DVec2::ZERO);
     }
-    let n = strata.len() as u32;
-    let stratum = permutation_element(s as u32, n, lens_key) as usize;
+    let stratum = lens_order.element(s as u32) as usize;
     (point, strata.point(stratum, rng))
 }
 

@@ -360,12 +360,7 @@ impl Texture {
                     let half = 0.5 * (dx.abs() + dy.abs()) / size;
                     return box_filtered_checker(p, half, even, odd);
                 }
-                let parity = p.x.floor() + p.y.floor() + p.z.floor();
-                if parity.rem_euclid(2.0) == 0.0 {
-                    even
-                } else {
-                    odd
-                }
+                if checker_cell_is_even(p) { even } else { odd }
             }
             Texture::UvChecker { even, odd, size } => {
                 let cell = (uv() / size).floor();
@@ -382,6 +377,27 @@ impl Texture {
                 ref sampling,
             } => tint * image.sample(uv(), sampling),
         }
+    }
+}
+
+/// Whether the cell of the 3D checker holding `p` (in cells) is even:
+/// ⌊x⌋ + ⌊y⌋ + ⌊z⌋ even. Within ±2⁵⁰ the floors are integers of an `i64`
+/// and their sum is exact either way, so the parity of their integer sum
+/// is the answer, without libm's `floor` and `fmod` (function calls on
+/// baseline x86-64); beyond, and for NaN, the float sum decides as before.
+#[inline]
+fn checker_cell_is_even(p: DVec3) -> bool {
+    const EXACT: f64 = (1u64 << 50) as f64;
+    // Comparisons, not `max_element`, which would pass NaN over.
+    if p.x.abs() < EXACT && p.y.abs() < EXACT && p.z.abs() < EXACT {
+        // Truncation, one less where it rounded up (negative non-integers).
+        let floor = |x: f64| {
+            let t = x as i64;
+            t - i64::from(x < t as f64)
+        };
+        (floor(p.x) + floor(p.y) + floor(p.z)) & 1 == 0
+    } else {
+        (p.x.floor() + p.y.floor() + p.z.floor()).rem_euclid(2.0) == 0.0
     }
 }
 
@@ -432,6 +448,42 @@ pub fn square_wave_mean(c: f64, h: f64) -> f64 {
 mod tests {
     use super::*;
     use crate::math::rng::PixelRng;
+
+    #[test]
+    fn the_checker_parity_is_the_float_parity() {
+        let float = |p: DVec3| (p.x.floor() + p.y.floor() + p.z.floor()).rem_euclid(2.0) == 0.0;
+        let mut rng = PixelRng::new(5, 1, 2);
+        let special = [
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            0.5,
+            -0.5,
+            -1e-300,
+            1e-300,
+            2.999_999_999_999_999_6,
+            -2.000_000_000_000_000_4,
+            1e15,
+            -1e15,
+            1.2e15 + 0.5,
+            3e17,
+            -3e17,
+            1e300,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+        ];
+        for i in 0..200_000 {
+            let pick = |rng: &mut PixelRng| match i % 3 {
+                0 => special[rng.below(special.len())],
+                1 => (rng.uniform() - 0.5) * 40.0,
+                _ => ((rng.uniform() - 0.5) * 40.0).round(),
+            };
+            let p = DVec3::new(pick(&mut rng), pick(&mut rng), pick(&mut rng));
+            assert_eq!(checker_cell_is_even(p), float(p), "{p}");
+        }
+    }
 
     #[test]
     fn float_texels_that_are_no_colour_are_made_one() {
