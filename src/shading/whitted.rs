@@ -662,7 +662,12 @@ impl<'a> Whitted<'a> {
                             }
                         }
                     }
-                    _ => self.visibility(&origins, sample, candidates.as_mut(), stats),
+                    _ => self.visibility(
+                        origins.spawn(sample.direction),
+                        sample,
+                        candidates.as_mut(),
+                        stats,
+                    ),
                 };
                 rec.feeler(index, sample, visibility);
                 visible[k] = visibility;
@@ -713,8 +718,13 @@ impl<'a> Whitted<'a> {
         let sample = batch.first();
         let behind = sample.is_none_or(|s| s.unlit(point.n));
         if let Some(sample) = sample.filter(|_| !behind) {
-            let origins = point.feeler_origins();
-            let visibility = self.visibility(&origins, sample, None, stats);
+            // One feeler: only the side of the surface it leaves by.
+            let feeler = SpawnOrigins::spawn_one(
+                point.hit.point + point.hit.feeler_offset,
+                point.hit.normal,
+                sample.direction,
+            );
+            let visibility = self.visibility(feeler, sample, None, stats);
             rec.feeler(index, sample, visibility);
             if visibility != DVec3::ZERO {
                 let shade = point
@@ -752,14 +762,15 @@ impl<'a> Whitted<'a> {
     /// colour channel. Classic Whitted: any object blocks (0 or 1), found by
     /// an any-hit query. With transparent shadows, each transparent blocker
     /// passes its kt (so tinted glass casts a tinted shadow).
+    /// `spawned` is the feeler (as [`SpawnOrigins::spawn`] gives it towards
+    /// `sample`) and its origin's distance from the point.
     fn visibility(
         &self,
-        origins: &SpawnOrigins,
+        (feeler, gap): (Ray, f64),
         sample: &LightSample,
         mut candidates: Option<&mut ShadowCandidates>,
         stats: &mut RayStats,
     ) -> DVec3 {
-        let (feeler, gap) = origins.spawn(sample.direction);
         let remaining = sample.distance - gap;
         if !self.scene.transparent_shadows {
             stats.shadow += 1;
