@@ -761,9 +761,9 @@ impl<'a> Whitted<'a> {
     /// The fraction of light that reaches the hit along a shadow feeler, per
     /// colour channel. Classic Whitted: any object blocks (0 or 1), found by
     /// an any-hit query. With transparent shadows, each transparent blocker
-    /// passes its kt (so tinted glass casts a tinted shadow).
-    /// `spawned` is the feeler (as [`SpawnOrigins::spawn`] gives it towards
-    /// `sample`) and its origin's distance from the point.
+    /// passes its kt (so tinted glass casts a tinted shadow). `(feeler,
+    /// gap)` is the feeler towards `sample` and its origin's distance from
+    /// the point, as [`SpawnOrigins::spawn`] gives them.
     fn visibility(
         &self,
         (feeler, gap): (Ray, f64),
