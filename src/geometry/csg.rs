@@ -583,18 +583,22 @@ impl Csg {
     }
 
     /// The children that rays staying in a region may meet, for queries
-    /// of many rays there (shadow feelers in their hull): those whose
-    /// boxes pass `may_meet`, which must hold for every box such a ray
-    /// meets; unbounded and inverted children always. `None` when no such
-    /// ray can meet the solid (a difference's first child or one of an
-    /// intersection's left out, or nothing left of a union).
-    pub fn children_meeting(&self, may_meet: impl Fn(&Aabb) -> bool) -> Option<ChildMask> {
+    /// of many rays there (shadow feelers in their hull): those that pass
+    /// `may_meet` (given the child and its box), which must hold for every
+    /// child such a ray meets; unbounded and inverted children always.
+    /// `None` when no such ray can meet the solid (a difference's first
+    /// child or one of an intersection's left out, or nothing left of a
+    /// union).
+    pub fn children_meeting(
+        &self,
+        may_meet: impl Fn(&CsgChild, &Aabb) -> bool,
+    ) -> Option<ChildMask> {
         let mut mask = ALL_CHILDREN;
-        for (i, b) in self.child_bounds.iter().enumerate() {
+        for (i, (child, b)) in self.children.iter().zip(&self.child_bounds).enumerate() {
             if i >= ChildMask::BITS as usize {
                 break;
             }
-            if b.is_some_and(|b| !may_meet(&b)) {
+            if b.is_some_and(|b| !may_meet(child, &b)) {
                 mask &= !(1 << i);
             }
         }
