@@ -18,7 +18,7 @@ use crate::math::Ray;
 use crate::math::ray::RELATIVE_OFFSET;
 
 /// Past this many candidates the BVH query is used instead.
-const MAX_CANDIDATES: usize = 16;
+pub const MAX_CANDIDATES: usize = 16;
 
 /// Box and primitive tests the search for candidates may spend per feeler
 /// it serves. A feeler's own BVH query costs several, but in a dense scene
@@ -426,6 +426,59 @@ impl ShadowCandidates {
             if let Some((t, normal, material)) =
                 self.feeler_hit(slot, &p.shape, feeler, 0.0, closest)
             {
+                closest = t;
+                found = Some(Blocker {
+                    t,
+                    normal,
+                    material: material.unwrap_or(p.material),
+                });
+            }
+        }
+        found
+    }
+
+    /// [`nearest`](Self::nearest) for a feeler continued through glass,
+    /// its origin `travelled` along the line from where the first feeler
+    /// of the line set out. `beyond[slot]`: how far along the line a CSG
+    /// candidate's surfaces end (+∞: not known); a candidate that ends
+    /// behind the origin is skipped, and one asked over the whole window
+    /// says where it ends. Feelers continued along one line meet the same
+    /// surfaces: each starts past the last surface it passed, pushed off
+    /// it by far less than any other surface lies from the line.
+    pub fn nearest_along(
+        &self,
+        aggregate: &Aggregate,
+        feeler: &Ray,
+        t_max: f64,
+        travelled: f64,
+        beyond: &mut [f64; MAX_CANDIDATES],
+    ) -> Option<Blocker> {
+        let mut found = None;
+        let mut closest = t_max;
+        for (slot, &i) in self.primitives[..self.len].iter().enumerate() {
+            if travelled > beyond[slot] {
+                continue;
+            }
+            let p = &aggregate.primitives[i as usize];
+            let hit = match &p.shape {
+                Shape::Csg(c) => {
+                    let (end, last) = c.nearest_and_last_boundary_among(
+                        feeler,
+                        0.0,
+                        closest,
+                        self.children[slot],
+                    );
+                    // Over the whole window, the last end is the solid's
+                    // last within reach; past the narrower window of a
+                    // nearer hit, nothing is known.
+                    if closest == t_max {
+                        beyond[slot] = travelled + last.max(0.0);
+                    }
+                    end.map(|b| (b.t, b.normal(feeler), Some(b.material)))
+                }
+                shape => shape.feeler_hit(feeler, 0.0, closest),
+            };
+            if let Some((t, normal, material)) = hit {
                 closest = t;
                 found = Some(Blocker {
                     t,
@@ -1259,6 +1312,110 @@ mod tests {
             "{left_out}/{points}"
         );
         assert!(hit > compared / 50, "{hit}/{compared}");
+    }
+
+    /// Feelers continued through CSG solids (lenses, merges of balls, a
+    /// block with a bubble) meet, step by step, the surfaces the full
+    /// query meets from each new origin: `nearest_along` skips only
+    /// candidates whose surfaces end behind the origin.
+    #[test]
+    fn continued_feelers_skip_only_solids_left_behind() {
+        use crate::geometry::Cuboid;
+        use crate::geometry::csg::{Csg, CsgChild, CsgOp};
+        use crate::math::Transform;
+        let mut rng = PixelRng::new(6, 1, 9);
+        let child = |shape| CsgChild {
+            shape,
+            material: 0,
+            inverse: false,
+        };
+        let ball = |center: DVec3, radius: f64| Shape::Sphere(Sphere { center, radius });
+        let mut primitives = Vec::new();
+        for n in 0..6 {
+            let at = DVec3::new(n as f64 * 1.6 - 4.0, 1.0 + 0.3 * (n % 3) as f64, 0.0);
+            let (op, children) = match n % 3 {
+                0 => (
+                    CsgOp::Intersection,
+                    vec![
+                        child(ball(at - 0.5 * DVec3::Y, 0.8)),
+                        child(ball(at + 0.5 * DVec3::Y, 0.8)),
+                    ],
+                ),
+                1 => (
+                    CsgOp::Merge,
+                    vec![
+                        child(ball(at - 0.3 * DVec3::X, 0.5)),
+                        child(ball(at + 0.3 * DVec3::X, 0.4)),
+                        child(ball(at + 0.4 * DVec3::Y, 0.3)),
+                    ],
+                ),
+                _ => (
+                    CsgOp::Difference,
+                    vec![
+                        child(Shape::Cuboid(Box::new(Cuboid::new(
+                            at - 0.6,
+                            at + 0.6,
+                            Transform::default(),
+                        )))),
+                        child(ball(at + 0.1, 0.3)),
+                    ],
+                ),
+            };
+            primitives.push(Primitive {
+                shape: Shape::Csg(Box::new(Csg::new(op, children))),
+                material: 0,
+            });
+        }
+        let aggregate = Aggregate::new(primitives);
+        let (center, radius) = (DVec3::new(0.5, 6.0, 0.5), 1.5);
+        let (mut chains, mut steps, mut skipped) = (0, 0, 0);
+        for _ in 0..300 {
+            let apex = DVec3::new(rng.uniform() * 10.0 - 5.0, 0.0, rng.uniform() * 2.0 - 1.0);
+            let to_center = center - apex;
+            let Some(candidates) = aggregate.shadow_candidates(apex, 6, to_center, radius, 64)
+            else {
+                continue;
+            };
+            let d2 = to_center.length_squared();
+            let frame = Frame::from_z(to_center / d2.sqrt());
+            let cos_max = (1.0 - radius * radius / d2).sqrt();
+            let strata = Strata::new(16);
+            for i in 0..16 {
+                let direction = uniform_cone(&frame, cos_max, strata.point(i, &mut rng));
+                let mut feeler = Ray::spawn(apex, DVec3::Y, direction);
+                let mut remaining = to_center.dot(direction);
+                let mut blocker = candidates.nearest(&aggregate, &feeler, remaining);
+                let mut beyond = [f64::INFINITY; MAX_CANDIDATES];
+                let mut travelled = 0.0;
+                chains += 1;
+                // As `Whitted::transmission` walks the line.
+                while let Some(b) = blocker {
+                    let point = feeler.at(b.t);
+                    let next = Ray::spawn(point, b.normal, direction);
+                    let step = b.t + (next.origin - point).length();
+                    (remaining, travelled, feeler) = (remaining - step, travelled + step, next);
+                    let full = candidates.nearest(&aggregate, &feeler, remaining);
+                    blocker = candidates.nearest_along(
+                        &aggregate,
+                        &feeler,
+                        remaining,
+                        travelled,
+                        &mut beyond,
+                    );
+                    assert_eq!(blocker, full, "{apex} {direction}");
+                    steps += 1;
+                    skipped += beyond[..candidates.len]
+                        .iter()
+                        .filter(|&&b| travelled > b)
+                        .count();
+                }
+            }
+        }
+        // Lines went through solids, and solids left behind were skipped.
+        assert!(
+            steps > chains / 4 && skipped > steps / 4,
+            "{chains} {steps} {skipped}"
+        );
     }
 
     /// A polygon half across the light's cone and a ball beside it: the

@@ -797,6 +797,38 @@ impl Csg {
         let end = first_end(&work.stack, work.window)?;
         Some(work.boundary(end))
     }
+
+    /// [`nearest_boundary_among`](Self::nearest_boundary_among), and the
+    /// parameter of the last surface in (t_min, t_max) (−∞ when none):
+    /// past it the ray meets nothing of the solid within the window, which
+    /// a feeler continued through glass along the same line can skip.
+    pub fn nearest_and_last_boundary_among(
+        &self,
+        ray: &Ray,
+        t_min: f64,
+        t_max: f64,
+        mask: ChildMask,
+    ) -> (Option<Boundary<'_>>, f64) {
+        if self.bounds.is_some_and(|b| !meets(ray, (t_min, t_max), &b)) {
+            return (None, f64::NEG_INFINITY);
+        }
+        let mut work = Work::new((t_min, t_max));
+        self.spans_into(ray, &mut work, self.bounds.is_some(), mask);
+        let Some(end) = first_end(&work.stack, work.window) else {
+            return (None, f64::NEG_INFINITY);
+        };
+        let last = last_end(&work.stack, work.window).map_or(end.t, |e| e.t);
+        (Some(work.boundary(end)), last)
+    }
+}
+
+/// The last end of `list` inside the open `window`.
+#[inline(always)]
+fn last_end<'l, 'a>(list: &'l [Piece<'a>], window: (f64, f64)) -> Option<&'l End<'a>> {
+    list.iter()
+        .rev()
+        .flat_map(|s| [&s.exit, &s.enter])
+        .find(|b| b.t > window.0 && b.t < window.1)
 }
 
 /// The first end of `list` inside the open `window`.

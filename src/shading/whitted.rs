@@ -13,7 +13,7 @@ use glam::DVec3;
 use super::glossy::{ggx_alpha, glossy_reflection, glossy_refraction, sample_ggx_normal};
 use super::optics::{fresnel_dielectric, reflect, refract, schlick};
 use super::{Fresnel, Material};
-use crate::accel::{Blocker, FeelerBatch, ShadowCandidates, simd};
+use crate::accel::{Blocker, FeelerBatch, MAX_CANDIDATES, ShadowCandidates, simd};
 use crate::geometry::Hit;
 use crate::lights::{Light, LightSample, LightSampler, SAMPLE_BATCH};
 use crate::math::ray::SpawnOrigins;
@@ -820,6 +820,10 @@ impl<'a> Whitted<'a> {
         let direction = feeler.direction;
         let mut transmission = DVec3::ONE;
         let mut blocker = first;
+        // Where each candidate's surfaces end along the line (see
+        // `ShadowCandidates::nearest_along`), measured from `feeler`.
+        let mut beyond = [f64::INFINITY; MAX_CANDIDATES];
+        let mut travelled = 0.0;
         loop {
             let Some(b) = blocker else {
                 return transmission;
@@ -830,10 +834,23 @@ impl<'a> Whitted<'a> {
             }
             let point = feeler.at(b.t);
             let next = Ray::spawn(point, b.normal, direction);
-            remaining -= b.t + (next.origin - point).length();
+            let step = b.t + (next.origin - point).length();
+            remaining -= step;
             feeler = next;
             stats.shadow += 1;
-            blocker = self.nearest_blocker(&feeler, remaining, candidates);
+            blocker = match candidates {
+                Some(c) => {
+                    travelled += step;
+                    c.nearest_along(
+                        &self.scene.aggregate,
+                        &feeler,
+                        remaining,
+                        travelled,
+                        &mut beyond,
+                    )
+                }
+                None => self.nearest_blocker(&feeler, remaining, None),
+            };
         }
     }
 }
