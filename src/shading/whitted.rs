@@ -711,11 +711,18 @@ impl<'a> Whitted<'a> {
         rec: &mut R,
     ) -> DVec3 {
         let mut batch = ArrayVec::<LightSample, SAMPLE_BATCH>::new();
-        sampler.sample_batch(0, rng, &mut batch);
+        let sample = match sampler {
+            // A point, spot or directional light: its one sample, which is
+            // what the batch would hold (drawing nothing), without the call.
+            LightSampler::Fixed(s) => Some(s),
+            _ => {
+                sampler.sample_batch(0, rng, &mut batch);
+                batch.first()
+            }
+        };
         let mut sum = DVec3::ZERO;
         // As `direct`: no feeler where the light is behind the surface
         // (N·L ≤ 0; NaN is traced).
-        let sample = batch.first();
         let behind = sample.is_none_or(|s| s.unlit(point.n));
         if let Some(sample) = sample.filter(|_| !behind) {
             // One feeler: only the side of the surface it leaves by.
