@@ -324,9 +324,8 @@ impl<const N: usize> RayLanes<N> {
     }
 }
 
-/// `[f(0), …, f(N − 1)]`, by a plain loop that the compiler turns into
-/// vector code once `f` is inlined (through `&dyn Fn` or
-/// `array::from_fn` it stayed one lane at a time).
+/// `[f(0), …, f(N − 1)]`, by a plain loop over the lanes, which the
+/// compiler turns into vector code once `f` is inlined.
 #[inline(always)]
 fn lanes<const N: usize>(f: impl Fn(usize) -> f64) -> [f64; N] {
     let mut out = [0.0; N];
