@@ -285,7 +285,7 @@ pub fn render_row(
                 sums[k] += tracer.camera_radiance(
                     &rays[k],
                     differential.as_ref(),
-                    hits[k],
+                    hits[k].as_ref(),
                     &mut rngs[k],
                     stats,
                 );

@@ -227,7 +227,7 @@ impl PathState {
 
 /// What the local model needs at a hit.
 struct ShadingPoint<'m> {
-    hit: Hit,
+    hit: &'m Hit,
     /// Unit normal facing the incoming ray.
     n: DVec3,
     /// Unit direction towards the viewer (−D).
@@ -318,7 +318,7 @@ impl<'a> Whitted<'a> {
         &self,
         ray: &Ray,
         differential: Option<&RayDifferential>,
-        hit: Option<Hit>,
+        hit: Option<&Hit>,
         rng: &mut PixelRng,
         stats: &mut RayStats,
     ) -> DVec3 {
@@ -363,7 +363,7 @@ impl<'a> Whitted<'a> {
         }
         rec.ray(path.kind, path.depth, path.weight, ray);
         let hit = self.scene.aggregate.closest_hit(ray, f64::INFINITY);
-        self.shade(ray, path, differential, hit, rng, stats, rec)
+        self.shade(ray, path, differential, hit.as_ref(), rng, stats, rec)
     }
 
     /// The colour along `ray` from its first hit on: the local model,
@@ -377,7 +377,7 @@ impl<'a> Whitted<'a> {
         ray: &Ray,
         path: PathState,
         differential: Option<&RayDifferential>,
-        hit: Option<Hit>,
+        hit: Option<&Hit>,
         rng: &mut PixelRng,
         stats: &mut RayStats,
         rec: &mut R,
@@ -407,16 +407,16 @@ impl<'a> Whitted<'a> {
             material,
             od: material
                 .texture
-                .color(hit.point, hit.normal, footprint, || aggregate.uv(&hit))
+                .color(hit.point, hit.normal, footprint, || aggregate.uv(hit))
                 * hit.color,
         };
 
-        rec.hit(&hit, entering, point.n, point.od);
+        rec.hit(hit, entering, point.n, point.od);
         let mut color = material.ka * point.od * self.scene.ambient;
         rec.ambient(color);
         let emitted = material
             .emission
-            .color(hit.point, hit.normal, footprint, || aggregate.uv(&hit));
+            .color(hit.point, hit.normal, footprint, || aggregate.uv(hit));
         rec.emission(emitted);
         color += emitted;
         for (index, light) in self.scene.lights.iter().enumerate() {
@@ -473,7 +473,7 @@ impl<'a> Whitted<'a> {
         stats: &mut RayStats,
         rec: &mut R,
     ) -> DVec3 {
-        let hit = &point.hit;
+        let hit = point.hit;
         let reflects =
             split.kr != DVec3::ZERO && self.goes_on(&path, split.kr, Stop::ReflectionWeight, rec);
         let transmits = split.refracted.is_some()
