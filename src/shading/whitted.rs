@@ -788,8 +788,12 @@ impl<'a> Whitted<'a> {
             return if blocked { DVec3::ZERO } else { DVec3::ONE };
         }
         stats.shadow += 1;
-        let first = self.nearest_blocker(&feeler, remaining, candidates.as_deref());
-        self.transmission(feeler, remaining, first, candidates.as_deref(), stats)
+        match self.nearest_blocker(&feeler, remaining, candidates.as_deref()) {
+            // Most feelers: nothing in the way (what `transmission` gives
+            // for no blocker, without the call).
+            None => DVec3::ONE,
+            first => self.transmission(feeler, remaining, first, candidates.as_deref(), stats),
+        }
     }
 
     /// The first surface `feeler` meets within `remaining`.
