@@ -786,8 +786,21 @@ mod tests {
 
     fn sphere(center: DVec3, radius: f64) -> Primitive {
         Primitive {
-            shape: Shape::Sphere(Sphere { center, radius }),
+            shape: ball(center, radius),
             material: 0,
+        }
+    }
+
+    fn ball(center: DVec3, radius: f64) -> Shape {
+        Shape::Sphere(Sphere { center, radius })
+    }
+
+    /// A CSG part of material 0, not inverted.
+    fn child(shape: Shape) -> crate::geometry::csg::CsgChild {
+        crate::geometry::csg::CsgChild {
+            shape,
+            material: 0,
+            inverse: false,
         }
     }
 
@@ -1089,14 +1102,9 @@ mod tests {
     #[test]
     fn csg_candidates_leave_out_children_off_the_hull_and_answer_the_same() {
         use crate::geometry::Cuboid;
-        use crate::geometry::csg::{Csg, CsgChild, CsgOp};
+        use crate::geometry::csg::{Csg, CsgOp};
         use crate::math::Transform;
         let mut rng = PixelRng::new(3, 8, 1);
-        let child = |shape| CsgChild {
-            shape,
-            material: 0,
-            inverse: false,
-        };
         let mut primitives = Vec::new();
         for n in 0..6 {
             let corner = DVec3::new(n as f64 * 1.5 - 4.0, 0.0, (n % 2) as f64 - 0.5);
@@ -1170,17 +1178,11 @@ mod tests {
     /// nearest surface the full query finds, to the bit, alone and batched.
     #[test]
     fn the_csg_a_point_lies_on_is_left_out_when_feelers_leave_it() {
-        use crate::geometry::csg::{Csg, CsgChild, CsgOp};
+        use crate::geometry::csg::{Csg, CsgOp};
         use crate::geometry::{Cone, Cuboid, Plane};
         use crate::math::Transform;
         use glam::DAffine3;
         let mut rng = PixelRng::new(4, 2, 7);
-        let child = |shape| CsgChild {
-            shape,
-            material: 0,
-            inverse: false,
-        };
-        let ball = |center: DVec3, radius: f64| Shape::Sphere(Sphere { center, radius });
         let csg = |op, children| Shape::Csg(Box::new(Csg::new(op, children)));
         let mut solids = Vec::new();
         for n in 0..4 {
@@ -1321,15 +1323,9 @@ mod tests {
     #[test]
     fn continued_feelers_skip_only_solids_left_behind() {
         use crate::geometry::Cuboid;
-        use crate::geometry::csg::{Csg, CsgChild, CsgOp};
+        use crate::geometry::csg::{Csg, CsgOp};
         use crate::math::Transform;
         let mut rng = PixelRng::new(6, 1, 9);
-        let child = |shape| CsgChild {
-            shape,
-            material: 0,
-            inverse: false,
-        };
-        let ball = |center: DVec3, radius: f64| Shape::Sphere(Sphere { center, radius });
         let mut primitives = Vec::new();
         for n in 0..6 {
             let at = DVec3::new(n as f64 * 1.6 - 4.0, 1.0 + 0.3 * (n % 3) as f64, 0.0);
