@@ -662,7 +662,11 @@ mod tests {
     /// the surface, into the tube and out of it (as feelers and refracted
     /// rays do), and rays grazing the top of the tube and its inner
     /// equator ever closer, above and below. The same root (or none), on
-    /// the surface to the documented tolerance.
+    /// the surface to the documented tolerance. The windows of rays from
+    /// the surface start 1e-6·(R + r) out: nearer, a ray leaving almost
+    /// tangentially meets its own origin's crossing within f's rounding,
+    /// which either search may report (3 such cases in 1 M hits with
+    /// windows from 1e-9; none from 1e-6 in 2 M rays).
     #[test]
     fn the_first_root_by_newton_steps_is_the_first_of_the_whole_line() {
         let mut rng = PixelRng::new(7, 3, 21);
@@ -689,7 +693,7 @@ mod tests {
             } else {
                 4.0 * u().abs() * (big + small)
             };
-            cases.push((t, p, d, (1e-9, far), 1e-9));
+            cases.push((t, p, d, (1e-6 * (big + small), far), 1e-9));
         }
         let t = torus(2.0, 0.5);
         for k in 1..=15 {
