@@ -356,8 +356,24 @@ fn first_root_by_pieces(
     }
     // Newton steps from x while they stay inside (lo, hi) and keep the
     // sign of f; the root once a step is below the tolerance.
-    let converged = |stepped: f64, dfx: f64, curve: f64| {
-        stepped <= 1e6 * tolerance && curve.abs() * stepped * stepped <= 2.0 * dfx.abs() * tolerance
+    // Where a Newton step from x (f = fx) lands: the root once the step's
+    // error is below the tolerance (or f is 0 there), the bracketing search
+    // from `a` when rounding gave the other sign, else f at the new point.
+    let land = |a: f64, x: f64, fx: f64, newton: f64, dfx: f64, curve: f64| {
+        let stepped = (newton - x).abs();
+        if stepped <= 1e6 * tolerance
+            && curve.abs() * stepped * stepped <= 2.0 * dfx.abs() * tolerance
+        {
+            return Err(FirstRoot::At(newton));
+        }
+        let next = f(newton);
+        if next == 0.0 {
+            return Err(FirstRoot::At(newton));
+        }
+        if (next < 0.0) != (fx < 0.0) {
+            return Err(FirstRoot::Search(a));
+        }
+        Ok(next)
     };
     let mut a = lo;
     let mut fa = f(a);
@@ -384,20 +400,10 @@ fn first_root_by_pieces(
                 if !(newton > a && newton < b) {
                     return FirstRoot::Search(a);
                 }
-                let stepped = (newton - x).abs();
-                if converged(stepped, dfx, curve) {
-                    return FirstRoot::At(newton);
+                match land(a, x, fx, newton, dfx, curve) {
+                    Ok(next) => (x, fx) = (newton, next),
+                    Err(found) => return found,
                 }
-                let next = f(newton);
-                if next == 0.0 {
-                    return FirstRoot::At(newton);
-                }
-                if (next < 0.0) != (fx < 0.0) {
-                    // Rounding near the root: the bracket [a, b] decides.
-                    return FirstRoot::Search(a);
-                }
-                x = newton;
-                fx = next;
             }
             return FirstRoot::Search(a);
         }
@@ -432,16 +438,10 @@ fn first_root_by_pieces(
                 if newton.is_nan() || newton <= x {
                     return FirstRoot::Search(a);
                 }
-                if converged(newton - x, dfx, curve) {
-                    return FirstRoot::At(newton);
-                }
-                let next = f(newton);
-                if next == 0.0 {
-                    return FirstRoot::At(newton);
-                }
-                if (next < 0.0) != (fx < 0.0) {
-                    return FirstRoot::Search(a);
-                }
+                let next = match land(a, x, fx, newton, dfx, curve) {
+                    Ok(next) => next,
+                    Err(found) => return found,
+                };
                 let dnext = df(newton);
                 if next * dnext >= 0.0 {
                     // f turned between x and newton: it lies beyond both
