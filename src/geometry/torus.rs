@@ -139,7 +139,8 @@ impl Torus {
         let a1 = -8.0 * big * big * (c.x * u.x + c.z * u.z);
         let f1 = |s: f64| 4.0 * s * s * s + 2.0 * a2 * s + a1;
         let f2 = |s: f64| 12.0 * s * s + 2.0 * a2;
-        // Newton steps below this end a root's search (see ROOT_TOLERANCE).
+        // A Newton step whose error is below this ends a root's search (see
+        // ROOT_TOLERANCE).
         let step = 1e-14 * (big + small);
         let mut lo = lo;
         let scale = (big + small).powi(4);
