@@ -795,6 +795,13 @@ mod tests {
         Shape::Sphere(Sphere { center, radius })
     }
 
+    fn csg(
+        op: crate::geometry::csg::CsgOp,
+        children: Vec<crate::geometry::csg::CsgChild>,
+    ) -> Shape {
+        Shape::Csg(Box::new(crate::geometry::csg::Csg::new(op, children)))
+    }
+
     /// A CSG part of material 0, not inverted.
     fn child(shape: Shape) -> crate::geometry::csg::CsgChild {
         crate::geometry::csg::CsgChild {
@@ -1102,7 +1109,7 @@ mod tests {
     #[test]
     fn csg_candidates_leave_out_children_off_the_hull_and_answer_the_same() {
         use crate::geometry::Cuboid;
-        use crate::geometry::csg::{Csg, CsgOp};
+        use crate::geometry::csg::CsgOp;
         use crate::math::Transform;
         let mut rng = PixelRng::new(3, 8, 1);
         let mut primitives = Vec::new();
@@ -1121,7 +1128,7 @@ mod tests {
                 CsgOp::Merge
             };
             primitives.push(Primitive {
-                shape: Shape::Csg(Box::new(Csg::new(op, children))),
+                shape: csg(op, children),
                 material: 0,
             });
         }
@@ -1178,12 +1185,11 @@ mod tests {
     /// nearest surface the full query finds, to the bit, alone and batched.
     #[test]
     fn the_csg_a_point_lies_on_is_left_out_when_feelers_leave_it() {
-        use crate::geometry::csg::{Csg, CsgOp};
+        use crate::geometry::csg::CsgOp;
         use crate::geometry::{Cone, Cuboid, Plane};
         use crate::math::Transform;
         use glam::DAffine3;
         let mut rng = PixelRng::new(4, 2, 7);
-        let csg = |op, children| Shape::Csg(Box::new(Csg::new(op, children)));
         let mut solids = Vec::new();
         for n in 0..4 {
             let at = DVec3::new(n as f64 * 2.5 - 4.0, 0.5, 0.0);
@@ -1323,7 +1329,7 @@ mod tests {
     #[test]
     fn continued_feelers_skip_only_solids_left_behind() {
         use crate::geometry::Cuboid;
-        use crate::geometry::csg::{Csg, CsgOp};
+        use crate::geometry::csg::CsgOp;
         use crate::math::Transform;
         let mut rng = PixelRng::new(6, 1, 9);
         let mut primitives = Vec::new();
@@ -1358,7 +1364,7 @@ mod tests {
                 ),
             };
             primitives.push(Primitive {
-                shape: Shape::Csg(Box::new(Csg::new(op, children))),
+                shape: csg(op, children),
                 material: 0,
             });
         }
