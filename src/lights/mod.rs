@@ -378,6 +378,27 @@ impl LightSampler {
         }
     }
 
+    /// How many numbers the samples draw from the stream, all of them
+    /// ([`sample_batch`](Self::sample_batch) over the whole count).
+    pub fn draws(&self) -> usize {
+        match self {
+            LightSampler::Fixed(_) => 0,
+            LightSampler::Cone { .. } | LightSampler::Area { .. } => 2 * self.count(),
+        }
+    }
+
+    /// Whether the whole light lies behind the plane through the point
+    /// with unit normal `n`, so that every sample is unlit there (see
+    /// [`LightSample::unlit`]): its ball (see
+    /// [`light_sphere`](Self::light_sphere)) lies beyond that plane by a
+    /// billionth of its distance, far more than the rounding of a
+    /// sample's direction.
+    pub fn behind(&self, n: DVec3) -> bool {
+        self.light_sphere().is_some_and(|(to_center, radius)| {
+            n.dot(to_center) < -(radius + 1e-9 * to_center.length())
+        })
+    }
+
     /// For a sphere light, the vector from the shading point to its
     /// centre and its radius: every feeler lies in their convex hull. For
     /// an area light, the same for the smallest ball about its centre
@@ -666,6 +687,95 @@ mod distance_tests {
             .sample_batch(0, &mut rng, &mut batch);
         assert_eq!(batch.len(), 1);
         assert_eq!(batch[0].direction, DVec3::Y);
+    }
+
+    /// Where `behind` says the light lies behind a point's plane, every
+    /// sample is unlit, and the draws are `draws` numbers: what `direct`
+    /// skips there leaves the stream and the sum where the samples would.
+    /// Planes from far behind to just past the margin, tangent to the
+    /// light's ball or nearly (the samples at its rim the closest calls).
+    #[test]
+    fn a_light_behind_the_plane_has_no_lit_sample() {
+        let mut rng = PixelRng::new(21, 0, 0);
+        let (mut behind, mut lit_near_miss, mut cut_lit) = (0, 0, 0);
+        for round in 0..3_000 {
+            let mut u = || rng.uniform();
+            let center = DVec3::new(u() - 0.5, u() - 0.5, u() - 0.5) * 20.0;
+            let point = DVec3::new(u() - 0.5, u() - 0.5, u() - 0.5) * 20.0;
+            let radius = 0.05 + u() * 2.0;
+            let shape = if round % 2 == 0 {
+                LightShape::Sphere {
+                    center,
+                    radius,
+                    samples: 1 + (u() * 40.0) as u32,
+                }
+            } else {
+                let axis_u = DVec3::new(u() - 0.5, u() - 0.5, u() - 0.5) * radius;
+                let axis_v = DVec3::new(u() - 0.5, u() - 0.5, u() - 0.5) * radius;
+                LightShape::Area {
+                    emitter: AreaLight {
+                        center,
+                        axis_u,
+                        axis_v,
+                        normal: axis_u.cross(axis_v).normalize(),
+                        outline: if u() < 0.5 {
+                            AreaOutline::Rectangle
+                        } else {
+                            AreaOutline::Disk
+                        },
+                        two_sided: u() < 0.5,
+                    },
+                    samples: 1 + (u() * 40.0) as u32,
+                }
+            };
+            let light = Light {
+                shape,
+                radiance: DVec3::ONE,
+                inverse_square: true,
+            };
+            let sampler = light.sampler(point);
+            let Some((to_center, ball)) = sampler.light_sphere() else {
+                continue;
+            };
+            let distance = to_center.length();
+            if distance <= ball {
+                continue;
+            }
+            // A normal whose plane passes the ball at `gap` (in units of
+            // the ball's radius, < 0: cutting into it), the rim's samples
+            // as near the plane as `gap` allows.
+            let gap = [-0.5, -1e-6, 0.0, 1e-12, 1e-9, 1e-6, 0.5][round % 7];
+            let axis = to_center / distance;
+            let side = Frame::from_z(axis).x;
+            let sin = ((ball * (1.0 + gap)) / distance).min(1.0);
+            let n = -(axis * sin + side * (1.0 - sin * sin).sqrt());
+            let count = sampler.count();
+            let stream = || PixelRng::new(5, round as u32, 0);
+            let (mut drawn, mut skipped) = (stream(), stream());
+            let mut batch = ArrayVec::new();
+            let mut any_lit = false;
+            let mut first = 0;
+            while first < count {
+                sampler.sample_batch(first, &mut drawn, &mut batch);
+                any_lit |= batch.iter().any(|s| !s.unlit(n));
+                first += batch.len();
+            }
+            skipped.skip(sampler.draws());
+            assert_eq!(drawn.uniform(), skipped.uniform(), "round {round}");
+            if sampler.behind(n) {
+                behind += 1;
+                assert!(!any_lit, "round {round}: gap {gap}");
+            } else if gap > 0.0 && !any_lit {
+                lit_near_miss += 1;
+            }
+            cut_lit += usize::from(gap < -0.1 && any_lit);
+        }
+        // Both answers came up, the margin gave some away, and a plane
+        // through the light leaves samples lit.
+        assert!(
+            behind > 600 && lit_near_miss > 0 && cut_lit > 100,
+            "{behind} {lit_near_miss} {cut_lit}"
+        );
     }
 
     #[test]

@@ -91,6 +91,17 @@ impl PixelRng {
         self.state = state.wrapping_mul(POWERS[last]);
     }
 
+    /// Moves the stream on past `n` draws, where `n` calls of
+    /// [`uniform`](Self::uniform) would leave it, without making them.
+    #[inline]
+    pub fn skip(&mut self, mut n: usize) {
+        while n > 0 {
+            let step = n.min(FILL_MAX);
+            self.state = self.state.wrapping_mul(POWERS[step - 1]);
+            n -= step;
+        }
+    }
+
     /// An index in 0..n (n > 0).
     #[inline]
     pub fn below(&mut self, n: usize) -> usize {
@@ -101,6 +112,19 @@ impl PixelRng {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn skipping_draws_leaves_the_stream_where_drawing_them_would() {
+        for n in 0..100 {
+            let (mut drawn, mut skipped) =
+                (PixelRng::new(7, n as u32, 1), PixelRng::new(7, n as u32, 1));
+            for _ in 0..n {
+                drawn.uniform();
+            }
+            skipped.skip(n);
+            assert_eq!(drawn.uniform(), skipped.uniform(), "{n}");
+        }
+    }
 
     #[test]
     fn streams_are_reproducible_and_distinct() {
