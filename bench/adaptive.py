@@ -7,7 +7,9 @@ at 1..64 spp and adaptive renders at depths 1..3 and thresholds 0.4..0.0125,
 each with its RMSE against the reference and its rays; then edges.toml again
 with its checker box-filtered (`filter = "box"`: each camera ray sees the
 checker's mean over its footprint, so the floor near the horizon no longer
-aliases, for either sampler). For each adaptive
+aliases, for either sampler), and with no checker at all (a plain floor:
+the star polygon and the bars alone, the edge scene as the issue names
+it). For each adaptive
 render it prints the rays uniform sampling needs for the same RMSE
 (interpolated in log-log between the two uniform renders around it) and the
 ratio adaptive / uniform (below 1/3 meets the issue's goal).
@@ -46,8 +48,13 @@ def main():
     filtered = os.path.join(tmp, "edges-filtered.toml")
     with open(filtered, "w") as f:
         f.write(text)
+    text, n = re.subn(r"\n\s*checker = \{[^}]*\}", "", text)
+    assert n == 1, "edges.toml has one checker"
+    plain = os.path.join(tmp, "edges-plain.toml")
+    with open(plain, "w") as f:
+        f.write(text)
     for scene, w, h in (("bench/whitted.toml", 320, 240), ("bench/edges.toml", 320, 200),
-                        (filtered, 320, 200)):
+                        (filtered, 320, 200), (plain, 320, 200)):
         out = subprocess.run([exe, os.path.join(ROOT, scene), str(w), str(h)],
                              check=True, capture_output=True, text=True).stdout
         rows = [json.loads(line) for line in out.splitlines() if line.strip()]
