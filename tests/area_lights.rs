@@ -244,6 +244,7 @@ fn the_penumbra_of_a_straight_edge_is_as_wide_as_similar_triangles_make_it() {
     let (w, height, blocker) = (2.0, 4.0, 1.0);
     let edge = 0.5 * w * blocker / (height - blocker);
     let mut rng = prism::math::rng::PixelRng::new(1, 2, 3);
+    let mut worst: f64 = 0.0;
     for k in 0..=60 {
         let x = -0.6 + 1.2 * f64::from(k) / 60.0;
         let point = DVec3::new(x, 0.0, 0.0);
@@ -262,6 +263,7 @@ fn the_penumbra_of_a_straight_edge_is_as_wide_as_similar_triangles_make_it() {
         // x + (l − x)·h/H, blocked where that is negative.
         let expected = ((x + edge) / (2.0 * edge)).clamp(0.0, 1.0);
         // 32 × 32 strata: the share is exact to one column (1/32).
+        worst = worst.max((share - expected).abs());
         assert!(
             (share - expected).abs() <= 1.0 / 32.0 + 1e-9,
             "x = {x}: {share} against {expected}"
@@ -273,6 +275,9 @@ fn the_penumbra_of_a_straight_edge_is_as_wide_as_similar_triangles_make_it() {
             assert_eq!(seen as usize, sampler.count(), "full light at {x}");
         }
     }
+    eprintln!(
+        "penumbra: worst |share - similar triangles'| = {worst:.4} (one column of strata: 0.0313)"
+    );
 }
 
 const CAMERA: &str = "[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\n";

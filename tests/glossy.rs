@@ -62,6 +62,13 @@ fn a_glossy_mirror_under_a_uniform_sky_returns_kr_times_the_sky() {
         );
         let (film, stats) = film(&s, 2);
         let on_ball = film.pixels().iter().filter(|p| **p != SKY).count();
+        let worst = film
+            .pixels()
+            .iter()
+            .filter(|p| **p != SKY)
+            .map(|p| (*p - 0.7 * SKY).abs().max_element())
+            .fold(0.0, f64::max);
+        eprintln!("white furnace, roughness {roughness}: worst |pixel - kr L| = {worst:.1e}");
         for p in film.pixels() {
             if *p != SKY {
                 assert!(
@@ -85,6 +92,12 @@ fn a_rough_glass_ball_under_a_uniform_sky_vanishes() {
     // path of this picture is cut.
     let s = furnace("kt = 1\nior = 1.5\nroughness = 0.6\nsamples = 4", 256);
     let (film, stats) = film(&s, 2);
+    let worst = film
+        .pixels()
+        .iter()
+        .map(|p| (*p - SKY).abs().max_element())
+        .fold(0.0, f64::max);
+    eprintln!("rough glass ball in the furnace: worst |pixel - L| = {worst:.1e}");
     for p in film.pixels() {
         assert!((*p - SKY).abs().max_element() < 1e-12, "{p}");
     }
