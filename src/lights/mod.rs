@@ -23,8 +23,12 @@ use crate::math::transcendental::sin_cos_turns;
 /// How many samples [`LightSampler::sample_batch`] draws at once.
 pub const SAMPLE_BATCH: usize = 16;
 
-// A batch's two draws per sample come from one `fill_uniform`.
-const _: () = assert!(2 * SAMPLE_BATCH <= crate::math::rng::FILL_MAX);
+/// The random numbers a sample of a sphere or area light draws: its
+/// jitter within its stratum, x then y.
+const SAMPLE_DRAWS: usize = 2;
+
+// A batch's draws come from one `fill_uniform`.
+const _: () = assert!(SAMPLE_DRAWS * SAMPLE_BATCH <= crate::math::rng::FILL_MAX);
 
 /// Where light comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -383,7 +387,7 @@ impl LightSampler {
     pub fn draws(&self) -> usize {
         match self {
             LightSampler::Fixed(_) => 0,
-            LightSampler::Cone { .. } | LightSampler::Area { .. } => 2 * self.count(),
+            LightSampler::Cone { .. } | LightSampler::Area { .. } => SAMPLE_DRAWS * self.count(),
         }
     }
 
@@ -510,8 +514,8 @@ impl LightSampler {
         match *self {
             LightSampler::Fixed(s) => out.extend(std::iter::repeat_n(s, wanted)),
             LightSampler::Area { .. } => {
-                let mut draws = [0.0; 2 * SAMPLE_BATCH];
-                rng.fill_uniform(&mut draws[..2 * wanted]);
+                let mut draws = [0.0; SAMPLE_DRAWS * SAMPLE_BATCH];
+                rng.fill_uniform(&mut draws[..SAMPLE_DRAWS * wanted]);
                 out.extend((0..wanted).map(|k| {
                     let jitter = DVec2::new(draws[2 * k], draws[2 * k + 1]);
                     self.area_sample(first + k, jitter)
@@ -526,9 +530,9 @@ impl LightSampler {
                 falloff,
                 strata,
             } => {
-                // Two draws per point, x then y, all at once.
-                let mut draws = [0.0; 2 * SAMPLE_BATCH];
-                rng.fill_uniform(&mut draws[..2 * wanted]);
+                // Every point's draws, x then y, all at once.
+                let mut draws = [0.0; SAMPLE_DRAWS * SAMPLE_BATCH];
+                rng.fill_uniform(&mut draws[..SAMPLE_DRAWS * wanted]);
                 let mut u = [DVec2::ZERO; SAMPLE_BATCH];
                 for (k, u) in u.iter_mut().enumerate().take(wanted) {
                     let jitter = DVec2::new(draws[2 * k], draws[2 * k + 1]);

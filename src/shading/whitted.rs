@@ -606,6 +606,8 @@ impl<'a> Whitted<'a> {
             // of the points that sample the light in bench/solids.toml and
             // bench/csg.toml.
             rng.skip(sampler.draws());
+            // The sum the loop leaves, weighted as it is (a radiance that
+            // is not finite gives what it gave there).
             let contribution = light.radiance * DVec3::ZERO / count as f64;
             rec.light(index, light.radiance, count, contribution);
             return contribution;
