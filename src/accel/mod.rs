@@ -13,7 +13,7 @@ pub(crate) mod simd;
 mod wide;
 
 pub use primitive::{Primitive, Shape};
-pub use shadow::{Blocker, FeelerBatch, MAX_CANDIDATES, ShadowCandidates};
+pub use shadow::{Blocker, FeelerBatch, FirstBlockers, MAX_CANDIDATES, ShadowCandidates};
 pub use simd::{NodePacket, NodeRay, PACKET, SimdPath, simd_path};
 
 use bvh::Bvh;

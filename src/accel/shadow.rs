@@ -49,6 +49,20 @@ pub struct Blocker {
     pub material: u32,
 }
 
+/// What a batch of feelers met first ([`ShadowCandidates::nearest_batch`]):
+/// per lane the nearest surface, and where the solid it belongs to ends.
+#[derive(Clone, Copy, Debug)]
+pub struct FirstBlockers<const N: usize> {
+    /// The nearest surface each lane meets (`None`: none, or lane off).
+    pub blockers: [Option<Blocker>; N],
+    /// Per lane, the candidate slot of its blocker and how far along the
+    /// feeler that candidate's surfaces end (+∞: not known): a CSG asked
+    /// over the feeler's whole reach says, so that a feeler continued past
+    /// its last surface (out of a glass solid) skips it, as
+    /// [`ShadowCandidates::nearest_along`] skips one it asked itself.
+    pub ends: [(usize, f64); N],
+}
+
 /// The convex hull of a point (the apex) and a sphere (the light), with
 /// what the conservative tests need.
 #[derive(Clone, Copy, Debug)]
@@ -644,7 +658,7 @@ impl ShadowCandidates {
         &self,
         aggregate: &Aggregate,
         feelers: &FeelerBatch<N>,
-    ) -> [Option<Blocker>; N] {
+    ) -> FirstBlockers<N> {
         simd::kernel().vectorize_job(NearestBatch {
             candidates: self,
             aggregate,
@@ -659,13 +673,16 @@ impl ShadowCandidates {
         &self,
         aggregate: &Aggregate,
         feelers: &FeelerBatch<N>,
-    ) -> [Option<Blocker>; N] {
+    ) -> FirstBlockers<N> {
         const NONE: u32 = u32::MAX;
         let mut closest = feelers.t_max;
         // Per lane, the candidate slot nearest so far, and its hit when
         // that is not a sphere (a sphere's is made from t at the end).
         let mut nearest = [NONE; N];
         let mut found = [None; N];
+        // Where the nearest CSG so far ends along each lane (see
+        // `FirstBlockers::ends`).
+        let mut ends = [(NONE, f64::INFINITY); N];
         for (slot, &i) in self.primitives[..self.len].iter().enumerate() {
             let p = &aggregate.primitives[i as usize];
             match &p.shape {
@@ -699,6 +716,33 @@ impl ShadowCandidates {
                             normal,
                             material: p.material,
                         });
+                    }
+                }
+                Shape::Csg(c) => {
+                    for k in 0..N {
+                        if !feelers.active[k] {
+                            continue;
+                        }
+                        let feeler = feelers.ray(k);
+                        let (end, last) = c.nearest_and_last_boundary_among(
+                            &feeler,
+                            0.0,
+                            closest[k],
+                            self.children[slot],
+                        );
+                        // Over the whole reach the last end is the
+                        // solid's last; within a nearer hit's, unknown.
+                        let whole = closest[k] == feelers.t_max[k];
+                        if let Some(b) = end {
+                            closest[k] = b.t;
+                            nearest[k] = slot as u32;
+                            ends[k] = (slot as u32, if whole { last } else { f64::INFINITY });
+                            found[k] = Some(Blocker {
+                                t: b.t,
+                                normal: b.normal(&feeler),
+                                material: b.material,
+                            });
+                        }
                     }
                 }
                 shape => {
@@ -738,7 +782,13 @@ impl ShadowCandidates {
                 _ => found[k],
             };
         }
-        blockers
+        // A lane's end is its blocker's (a nearer hit on another candidate
+        // leaves the CSG's behind).
+        let ends = std::array::from_fn(|k| match ends[k] {
+            (slot, at) if slot == nearest[k] && slot != NONE => (slot as usize, at),
+            _ => (0, f64::INFINITY),
+        });
+        FirstBlockers { blockers, ends }
     }
 }
 
@@ -766,9 +816,9 @@ struct NearestBatch<'a, const N: usize> {
 }
 
 impl<const N: usize> Job for NearestBatch<'_, N> {
-    type Output = [Option<Blocker>; N];
+    type Output = FirstBlockers<N>;
     #[inline(always)]
-    fn run(self) -> [Option<Blocker>; N] {
+    fn run(self) -> FirstBlockers<N> {
         self.candidates
             .nearest_batch_here(self.aggregate, self.feelers)
     }
@@ -891,7 +941,7 @@ mod tests {
                 expected_nearest[lane] = nearest;
                 if lane == 15 {
                     let got = candidates.any_hit_batch(&aggregate, &batch);
-                    let got_nearest = candidates.nearest_batch(&aggregate, &batch);
+                    let got_nearest = candidates.nearest_batch(&aggregate, &batch).blockers;
                     for lane in (0..16).filter(|&l| batch.active[l]) {
                         assert_eq!(got[lane], expected[lane], "{apex} feeler {lane}");
                         assert_eq!(
@@ -976,7 +1026,7 @@ mod tests {
                     (lane + round) % 7 != 0,
                 );
             }
-            let got = candidates.nearest_batch(&aggregate, &batch);
+            let got = candidates.nearest_batch(&aggregate, &batch).blockers;
             for lane in (0..16).filter(|&l| batch.active[l]) {
                 let alone = candidates.nearest(&aggregate, &batch.ray(lane), batch.t_max[lane]);
                 assert_eq!(got[lane], alone, "round {round} lane {lane}");
@@ -1308,7 +1358,7 @@ mod tests {
                 hit += usize::from(full.is_some());
             }
             assert_eq!(
-                candidates.nearest_batch(&aggregate, &batch),
+                candidates.nearest_batch(&aggregate, &batch).blockers,
                 expected,
                 "{apex}"
             );
@@ -1325,7 +1375,9 @@ mod tests {
     /// Feelers continued through CSG solids (lenses, merges of balls, a
     /// block with a bubble) meet, step by step, the surfaces the full
     /// query meets from each new origin: `nearest_along` skips only
-    /// candidates whose surfaces end behind the origin.
+    /// candidates whose surfaces end behind the origin, whether it found
+    /// where they end itself or the batch that found the first surface
+    /// did (`FirstBlockers::ends`).
     #[test]
     fn continued_feelers_skip_only_solids_left_behind() {
         use crate::geometry::Cuboid;
@@ -1367,10 +1419,16 @@ mod tests {
                 shape: csg(op, children),
                 material: 0,
             });
+            // Plain balls among them, some nearer the floor: a nearer hit
+            // on one leaves the CSG's end unknown.
+            primitives.push(sphere(
+                at + DVec3::new(0.7, -0.4 + 0.5 * (n % 2) as f64, 0.3),
+                0.25,
+            ));
         }
         let aggregate = Aggregate::new(primitives);
         let (center, radius) = (DVec3::new(0.5, 6.0, 0.5), 1.5);
-        let (mut chains, mut steps, mut skipped) = (0, 0, 0);
+        let (mut chains, mut steps, mut skipped, mut known) = (0, 0, 0, 0);
         for _ in 0..300 {
             let apex = DVec3::new(rng.uniform() * 10.0 - 5.0, 0.0, rng.uniform() * 2.0 - 1.0);
             let to_center = center - apex;
@@ -1382,12 +1440,23 @@ mod tests {
             let frame = Frame::from_z(to_center / d2.sqrt());
             let cos_max = (1.0 - radius * radius / d2).sqrt();
             let strata = Strata::new(16);
+            let mut batch = FeelerBatch::<16>::default();
             for i in 0..16 {
                 let direction = uniform_cone(&frame, cos_max, strata.point(i, &mut rng));
-                let mut feeler = Ray::spawn(apex, DVec3::Y, direction);
-                let mut remaining = to_center.dot(direction);
-                let mut blocker = candidates.nearest(&aggregate, &feeler, remaining);
+                let feeler = Ray::spawn(apex, DVec3::Y, direction);
+                batch.set(i, &feeler, to_center.dot(direction), true);
+            }
+            let first = candidates.nearest_batch(&aggregate, &batch);
+            for i in 0..16 {
+                let mut feeler = batch.ray(i);
+                let direction = feeler.direction;
+                let mut remaining = batch.t_max[i];
+                let mut blocker = first.blockers[i];
+                assert_eq!(blocker, candidates.nearest(&aggregate, &feeler, remaining));
                 let mut beyond = [f64::INFINITY; MAX_CANDIDATES];
+                let (slot, ends) = first.ends[i];
+                beyond[slot] = ends.max(0.0);
+                known += usize::from(ends.is_finite());
                 let mut travelled = 0.0;
                 chains += 1;
                 // As `Whitted::transmission` walks the line.
@@ -1413,10 +1482,11 @@ mod tests {
                 }
             }
         }
-        // Lines went through solids, and solids left behind were skipped.
+        // Lines went through solids, solids left behind were skipped, and
+        // the batch knew where many of the first solids end.
         assert!(
-            steps > chains / 4 && skipped > steps / 4,
-            "{chains} {steps} {skipped}"
+            steps > chains / 4 && skipped > steps / 4 && known > chains / 8,
+            "{chains} {steps} {skipped} {known}"
         );
     }
 
@@ -1463,7 +1533,7 @@ mod tests {
             }
             assert_eq!(candidates.any_hit_batch(&aggregate, &batch), expected);
             assert_eq!(
-                candidates.nearest_batch(&aggregate, &batch),
+                candidates.nearest_batch(&aggregate, &batch).blockers,
                 expected_nearest
             );
             blocked += expected.iter().filter(|&&b| b).count();

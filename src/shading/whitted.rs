@@ -664,14 +664,15 @@ impl<'a> Whitted<'a> {
                     }
                     (_, Some(nearest)) => {
                         stats.shadow += 1;
-                        match nearest[k] {
+                        match nearest.blockers[k] {
                             // Most feelers: nothing in the way.
                             None => DVec3::ONE,
                             first => {
                                 let (feeler, gap) = origins.spawn(sample.direction);
                                 let remaining = sample.distance - gap;
                                 let c = candidates.as_ref();
-                                self.transmission(feeler, remaining, first, c, stats)
+                                let ends = Some(nearest.ends[k]);
+                                self.transmission(feeler, remaining, first, ends, c, stats)
                             }
                         }
                     }
@@ -805,7 +806,10 @@ impl<'a> Whitted<'a> {
             // Most feelers: nothing in the way (what `transmission` gives
             // for no blocker, without the call).
             None => DVec3::ONE,
-            first => self.transmission(feeler, remaining, first, candidates.as_deref(), stats),
+            first => {
+                let c = candidates.as_deref();
+                self.transmission(feeler, remaining, first, None, c, stats)
+            }
         }
     }
 
@@ -832,12 +836,15 @@ impl<'a> Whitted<'a> {
 
     /// Transparent shadows: the light a feeler carries past `first`, the
     /// first surface it meets (already found, and counted), and every one
-    /// after it, each passing its kt.
+    /// after it, each passing its kt. `first_ends`: the candidate slot
+    /// `first` belongs to and how far along `feeler` its surfaces end, where
+    /// the search that found it knows (see `FirstBlockers::ends`).
     fn transmission(
         &self,
         mut feeler: Ray,
         mut remaining: f64,
         first: Option<Blocker>,
+        first_ends: Option<(usize, f64)>,
         candidates: Option<&ShadowCandidates>,
         stats: &mut RayStats,
     ) -> DVec3 {
@@ -847,6 +854,9 @@ impl<'a> Whitted<'a> {
         // Where each candidate's surfaces end along the line (see
         // `ShadowCandidates::nearest_along`), measured from `feeler`.
         let mut beyond = [f64::INFINITY; MAX_CANDIDATES];
+        if let Some((slot, at)) = first_ends {
+            beyond[slot] = at.max(0.0);
+        }
         let mut travelled = 0.0;
         loop {
             let Some(b) = blocker else {
