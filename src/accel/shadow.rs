@@ -12,7 +12,7 @@ use glam::DVec3;
 use super::simd::Job;
 use super::{Aggregate, PACKET, Shape, simd};
 use crate::geometry::Aabb;
-use crate::geometry::csg::{ALL_CHILDREN, ChildMask, CsgOp};
+use crate::geometry::csg::{ALL_CHILDREN, Boundary, ChildMask, Csg, CsgOp, solo_ends};
 use crate::geometry::sphere::{sphere_blocks, sphere_first_root};
 use crate::math::Ray;
 use crate::math::ray::RELATIVE_OFFSET;
@@ -399,10 +399,32 @@ impl ShadowCandidates {
         t_max: f64,
     ) -> Option<(f64, DVec3, Option<u32>)> {
         match shape {
-            Shape::Csg(c) => c
-                .nearest_boundary_among(feeler, t_min, t_max, self.children[slot])
+            Shape::Csg(c) => self
+                .csg_ends(slot, c, feeler, t_min, t_max)
+                .0
                 .map(|b| (b.t, b.normal(feeler), Some(b.material))),
             _ => shape.feeler_hit(feeler, t_min, t_max),
+        }
+    }
+
+    /// The nearest surface of the CSG candidate in `slot` within (t_min,
+    /// t_max) and the parameter of its last there (−∞ when none), as
+    /// [`Csg::nearest_and_last_boundary_among`] finds them: its children
+    /// that cannot block left out, and from its one child alone where that
+    /// child is the whole solid within reach ([`Csg::solo`]).
+    #[inline(always)]
+    fn csg_ends<'a>(
+        &self,
+        slot: usize,
+        c: &'a Csg,
+        feeler: &Ray,
+        t_min: f64,
+        t_max: f64,
+    ) -> (Option<Boundary<'a>>, f64) {
+        let mask = self.children[slot];
+        match c.solo(mask) {
+            Some(child) => solo_ends(child, feeler, (t_min, t_max)),
+            None => c.nearest_and_last_boundary_among(feeler, t_min, t_max, mask),
         }
     }
 
@@ -411,9 +433,7 @@ impl ShadowCandidates {
     #[inline(always)]
     fn occludes(&self, slot: usize, shape: &Shape, feeler: &Ray, t_min: f64, t_max: f64) -> bool {
         match shape {
-            Shape::Csg(c) => c
-                .nearest_boundary_among(feeler, t_min, t_max, self.children[slot])
-                .is_some(),
+            Shape::Csg(c) => self.csg_ends(slot, c, feeler, t_min, t_max).0.is_some(),
             _ => shape.occludes(feeler, t_min, t_max),
         }
     }
@@ -476,12 +496,7 @@ impl ShadowCandidates {
             let p = &aggregate.primitives[i as usize];
             let hit = match &p.shape {
                 Shape::Csg(c) => {
-                    let (end, last) = c.nearest_and_last_boundary_among(
-                        feeler,
-                        0.0,
-                        closest,
-                        self.children[slot],
-                    );
+                    let (end, last) = self.csg_ends(slot, c, feeler, 0.0, closest);
                     // Over the whole window, the last end is the solid's
                     // last within reach; past the narrower window of a
                     // nearer hit, nothing is known.
@@ -719,17 +734,18 @@ impl ShadowCandidates {
                     }
                 }
                 Shape::Csg(c) => {
+                    let (mask, solo) = (self.children[slot], c.solo(self.children[slot]));
                     for k in 0..N {
                         if !feelers.active[k] {
                             continue;
                         }
                         let feeler = feelers.ray(k);
-                        let (end, last) = c.nearest_and_last_boundary_among(
-                            &feeler,
-                            0.0,
-                            closest[k],
-                            self.children[slot],
-                        );
+                        let (end, last) = match solo {
+                            Some(child) => solo_ends(child, &feeler, (0.0, closest[k])),
+                            None => {
+                                c.nearest_and_last_boundary_among(&feeler, 0.0, closest[k], mask)
+                            }
+                        };
                         // Over the whole reach the last end is the
                         // solid's last; within a nearer hit's, unknown.
                         let whole = closest[k] == feelers.t_max[k];
@@ -1154,8 +1170,9 @@ mod tests {
 
     /// Dice-like CSGs (a box less, or merged with, a dozen balls; more
     /// children than go without an index): each feeler's query looks only
-    /// at the children whose boxes meet the hull, and finds the nearest
-    /// surface the full query finds, to the bit.
+    /// at the children whose boxes meet the hull (the box alone where no
+    /// ball does), and finds the nearest surface the full query finds, to
+    /// the bit.
     #[test]
     fn csg_candidates_leave_out_children_off_the_hull_and_answer_the_same() {
         use crate::geometry::Cuboid;
@@ -1184,7 +1201,7 @@ mod tests {
         }
         let aggregate = Aggregate::new(primitives);
         let (center, radius) = (DVec3::new(0.5, 6.0, 0.5), 0.8);
-        let (mut narrowed, mut compared, mut hit) = (0, 0, 0);
+        let (mut narrowed, mut compared, mut hit, mut solo) = (0, 0, 0, 0);
         for _ in 0..400 {
             let apex = DVec3::new(
                 rng.uniform() * 10.0 - 5.0,
@@ -1201,6 +1218,15 @@ mod tests {
                     .iter()
                     .any(|&m| m != ALL_CHILDREN),
             );
+            // Candidates answered from one child alone (`Csg::solo`).
+            solo += (0..candidates.len)
+                .filter(
+                    |&k| match &aggregate.primitives[candidates.primitives[k] as usize].shape {
+                        Shape::Csg(c) => c.solo(candidates.children[k]).is_some(),
+                        _ => false,
+                    },
+                )
+                .count();
             let d2 = to_center.length_squared();
             let frame = Frame::from_z(to_center / d2.sqrt());
             let cos_max = (1.0 - radius * radius / d2).sqrt();
@@ -1220,7 +1246,7 @@ mod tests {
                 hit += usize::from(full.is_some());
             }
         }
-        assert!(narrowed > 100, "{narrowed}");
+        assert!(narrowed > 100 && solo > 50, "{narrowed} {solo}");
         assert!(
             hit > compared / 10 && hit < compared * 9 / 10,
             "{hit}/{compared}"

@@ -822,6 +822,75 @@ impl Csg {
     }
 }
 
+impl Csg {
+    /// The one child that is the whole solid within a window that only the
+    /// children in `mask` may meet (see [`children_meeting`](Self::children_meeting)):
+    /// a difference's first child with every subtrahend left out, or a
+    /// union's one child left, when it is an analytic solid that is not
+    /// inverted. The others' intervals lie outside the window, so every
+    /// end of its own there is an end of the set, the set's outward normal
+    /// its own: [`solo_ends`] answers the query from it alone, without the
+    /// lists.
+    #[inline]
+    pub fn solo(&self, mask: ChildMask) -> Option<&CsgChild> {
+        let n = self.children.len();
+        if n > ChildMask::BITS as usize {
+            return None;
+        }
+        let left = mask & (ALL_CHILDREN >> (ChildMask::BITS as usize - n));
+        let child = match self.op {
+            CsgOp::Difference if left == 1 => &self.children[0],
+            CsgOp::Union | CsgOp::Merge if left.count_ones() == 1 => {
+                &self.children[left.trailing_zeros() as usize]
+            }
+            _ => return None,
+        };
+        let analytic = matches!(
+            &child.shape,
+            Shape::Sphere(_) | Shape::Ellipsoid(_) | Shape::Cuboid(_) | Shape::Torus(_)
+        ) || matches!(&child.shape, Shape::Cone(c) if !c.open);
+        (analytic && !child.inverse).then_some(child)
+    }
+}
+
+/// [`Csg::nearest_and_last_boundary_among`] for a CSG that `child` stands
+/// for ([`Csg::solo`]): the first of its ends in the open `window` and the
+/// parameter of the last (−∞ when none), the same surfaces with the same
+/// bits (the child's interval ends, as the lists hold them), without the
+/// lists or the CSG's box test.
+#[inline]
+pub fn solo_ends<'a>(
+    child: &'a CsgChild,
+    ray: &Ray,
+    window: (f64, f64),
+) -> (Option<Boundary<'a>>, f64) {
+    let within = |s: &Surface| s.t > window.0 && s.t < window.1;
+    let (mut first, mut last) = (None, f64::NEG_INFINITY);
+    let intervals = match &child.shape {
+        // The commonest, without the generic list (as the lists take them).
+        Shape::Cuboid(b) => b.interval(ray).into_iter().collect(),
+        Shape::Sphere(s) => s.interval(ray).into_iter().collect(),
+        shape => shape.intervals(ray),
+    };
+    for i in &intervals {
+        for s in [i.enter, i.exit] {
+            if within(&s) {
+                first = first.or(Some(s));
+                last = s.t;
+            }
+        }
+    }
+    let boundary = first.map(|s| Boundary {
+        t: s.t,
+        part: s.part,
+        given: DVec3::ZERO,
+        leaf: Some(&child.shape),
+        material: child.material,
+        flipped: false,
+    });
+    (boundary, last)
+}
+
 /// The last end of `list` inside the open `window`.
 #[inline(always)]
 fn last_end<'l, 'a>(list: &'l [Piece<'a>], window: (f64, f64)) -> Option<&'l End<'a>> {
@@ -1055,6 +1124,45 @@ mod tests {
                     assert_eq!(contains(&out, t), want, "{op:?} at {t}: {:?}", ends(&out));
                 }
             }
+        }
+    }
+
+    /// `solo` picks the child that is the whole solid where the mask
+    /// leaves one (a difference's first, a union's one), and nothing
+    /// where the lists are needed; the answer from it is the lists'.
+    #[test]
+    fn a_lone_child_stands_for_the_solid_only_where_it_is_the_solid() {
+        let ball = |x: f64, r: f64| CsgChild {
+            shape: Shape::Sphere(crate::geometry::Sphere {
+                center: DVec3::new(x, 0.0, 0.0),
+                radius: r,
+            }),
+            material: 3,
+            inverse: false,
+        };
+        let node = |op, children| Csg::new(op, children);
+        let d = node(CsgOp::Difference, vec![ball(0.0, 1.0), ball(0.5, 0.3)]);
+        assert!(std::ptr::eq(d.solo(0b01).unwrap(), &d.children[0]));
+        assert!(d.solo(0b11).is_none() && d.solo(ALL_CHILDREN).is_none());
+        let u = node(CsgOp::Union, vec![ball(0.0, 1.0), ball(3.0, 0.5)]);
+        assert!(std::ptr::eq(u.solo(0b10).unwrap(), &u.children[1]));
+        let i = node(CsgOp::Intersection, vec![ball(0.0, 1.0), ball(0.5, 1.0)]);
+        assert!(i.solo(0b01).is_none());
+        let mut inverted = ball(0.0, 1.0);
+        inverted.inverse = true;
+        let d2 = node(CsgOp::Difference, vec![inverted, ball(0.5, 0.3)]);
+        assert!(d2.solo(0b01).is_none());
+        // Along a line that misses the bubble, the ball's ends are the set's.
+        let ray = Ray::new(DVec3::new(-3.0, 0.6, 0.0), DVec3::X);
+        for window in [(0.0, 10.0), (0.0, 3.0), (3.0, 10.0), (0.0, 1.0)] {
+            let (first, last) = solo_ends(&d.children[0], &ray, window);
+            let (want, want_last) =
+                d.nearest_and_last_boundary_among(&ray, window.0, window.1, ALL_CHILDREN);
+            assert_eq!(
+                first.map(|b| (b.t, b.normal(&ray), b.material)),
+                want.map(|b| (b.t, b.normal(&ray), b.material))
+            );
+            assert_eq!(last, want_last);
         }
     }
 
