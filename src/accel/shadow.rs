@@ -55,12 +55,24 @@ pub struct Blocker {
 pub struct FirstBlockers<const N: usize> {
     /// The nearest surface each lane meets (`None`: none, or lane off).
     pub blockers: [Option<Blocker>; N],
-    /// Per lane, the candidate slot of its blocker and how far along the
-    /// feeler that candidate's surfaces end (+∞: not known): a CSG asked
-    /// over the feeler's whole reach says, so that a feeler continued past
-    /// its last surface (out of a glass solid) skips it, as
-    /// [`ShadowCandidates::nearest_along`] skips one it asked itself.
-    pub ends: [(usize, f64); N],
+    /// The candidate slot each lane's blocker belongs to.
+    pub slots: [u32; N],
+    /// How far along each lane's feeler its blocker's candidate has
+    /// surfaces (+∞: not known): a CSG asked over the feeler's whole reach
+    /// says, so that a feeler continued past its last surface (out of a
+    /// glass solid) skips it, as [`ShadowCandidates::nearest_along`] skips
+    /// one it asked itself.
+    pub ends: [f64; N],
+}
+
+impl<const N: usize> Default for FirstBlockers<N> {
+    fn default() -> Self {
+        FirstBlockers {
+            blockers: [None; N],
+            slots: [u32::MAX; N],
+            ends: [f64::INFINITY; N],
+        }
+    }
 }
 
 /// The convex hull of a point (the apex) and a sphere (the light), with
@@ -669,15 +681,19 @@ impl ShadowCandidates {
     /// candidates in the same order, so the same one wins a tie. Spheres
     /// are tested against every lane at once by [`sphere_first_root`];
     /// other shapes lane by lane.
+    /// The answers are written into `out` (not returned: a copy of them
+    /// out of the vector code's frame cost a `memcpy` per batch).
     pub fn nearest_batch<const N: usize>(
         &self,
         aggregate: &Aggregate,
         feelers: &FeelerBatch<N>,
-    ) -> FirstBlockers<N> {
+        out: &mut FirstBlockers<N>,
+    ) {
         simd::kernel().vectorize_job(NearestBatch {
             candidates: self,
             aggregate,
             feelers,
+            out,
         })
     }
 
@@ -688,7 +704,8 @@ impl ShadowCandidates {
         &self,
         aggregate: &Aggregate,
         feelers: &FeelerBatch<N>,
-    ) -> FirstBlockers<N> {
+        out: &mut FirstBlockers<N>,
+    ) {
         const NONE: u32 = u32::MAX;
         let mut closest = feelers.t_max;
         // Per lane, the candidate slot nearest so far, and its hit when
@@ -697,7 +714,7 @@ impl ShadowCandidates {
         let mut found = [None; N];
         // Where the nearest CSG so far ends along each lane (see
         // `FirstBlockers::ends`).
-        let mut ends = [(NONE, f64::INFINITY); N];
+        let mut ends = [f64::INFINITY; N];
         for (slot, &i) in self.primitives[..self.len].iter().enumerate() {
             let p = &aggregate.primitives[i as usize];
             match &p.shape {
@@ -713,6 +730,7 @@ impl ShadowCandidates {
                         );
                         closest[k] = if hit { t } else { closest[k] };
                         nearest[k] = if hit { slot as u32 } else { nearest[k] };
+                        ends[k] = if hit { f64::INFINITY } else { ends[k] };
                     }
                 }
                 // Cones and cylinders: every lane at once too.
@@ -725,6 +743,7 @@ impl ShadowCandidates {
                         }
                         closest[k] = t[k];
                         nearest[k] = slot as u32;
+                        ends[k] = f64::INFINITY;
                         let normal = c.crossing_normal(&feelers.ray(k), t[k], part[k]);
                         found[k] = Some(Blocker {
                             t: t[k],
@@ -752,7 +771,7 @@ impl ShadowCandidates {
                         if let Some(b) = end {
                             closest[k] = b.t;
                             nearest[k] = slot as u32;
-                            ends[k] = (slot as u32, if whole { last } else { f64::INFINITY });
+                            ends[k] = if whole { last } else { f64::INFINITY };
                             found[k] = Some(Blocker {
                                 t: b.t,
                                 normal: b.normal(&feeler),
@@ -770,6 +789,7 @@ impl ShadowCandidates {
                         if let Some((t, normal, material)) = hit {
                             closest[k] = t;
                             nearest[k] = slot as u32;
+                            ends[k] = f64::INFINITY;
                             found[k] = Some(Blocker {
                                 t,
                                 normal,
@@ -780,13 +800,13 @@ impl ShadowCandidates {
                 }
             }
         }
-        let mut blockers = [None; N];
         for k in 0..N {
             if !feelers.active[k] || nearest[k] == NONE {
+                out.blockers[k] = None;
                 continue;
             }
             let p = &aggregate.primitives[self.primitives[nearest[k] as usize] as usize];
-            blockers[k] = match &p.shape {
+            out.blockers[k] = match &p.shape {
                 Shape::Sphere(s) => {
                     let h = s.hit_at(&feelers.ray(k), closest[k]);
                     Some(Blocker {
@@ -798,13 +818,8 @@ impl ShadowCandidates {
                 _ => found[k],
             };
         }
-        // A lane's end is its blocker's (a nearer hit on another candidate
-        // leaves the CSG's behind).
-        let ends = std::array::from_fn(|k| match ends[k] {
-            (slot, at) if slot == nearest[k] && slot != NONE => (slot as usize, at),
-            _ => (0, f64::INFINITY),
-        });
-        FirstBlockers { blockers, ends }
+        out.slots = nearest;
+        out.ends = ends;
     }
 }
 
@@ -829,14 +844,15 @@ struct NearestBatch<'a, const N: usize> {
     candidates: &'a ShadowCandidates,
     aggregate: &'a Aggregate,
     feelers: &'a FeelerBatch<N>,
+    out: &'a mut FirstBlockers<N>,
 }
 
 impl<const N: usize> Job for NearestBatch<'_, N> {
-    type Output = FirstBlockers<N>;
+    type Output = ();
     #[inline(always)]
-    fn run(self) -> FirstBlockers<N> {
+    fn run(self) {
         self.candidates
-            .nearest_batch_here(self.aggregate, self.feelers)
+            .nearest_batch_here(self.aggregate, self.feelers, self.out)
     }
 }
 
@@ -957,7 +973,11 @@ mod tests {
                 expected_nearest[lane] = nearest;
                 if lane == 15 {
                     let got = candidates.any_hit_batch(&aggregate, &batch);
-                    let got_nearest = candidates.nearest_batch(&aggregate, &batch).blockers;
+                    let got_nearest = {
+                        let mut out = FirstBlockers::default();
+                        candidates.nearest_batch(&aggregate, &batch, &mut out);
+                        out.blockers
+                    };
                     for lane in (0..16).filter(|&l| batch.active[l]) {
                         assert_eq!(got[lane], expected[lane], "{apex} feeler {lane}");
                         assert_eq!(
@@ -1042,7 +1062,11 @@ mod tests {
                     (lane + round) % 7 != 0,
                 );
             }
-            let got = candidates.nearest_batch(&aggregate, &batch).blockers;
+            let got = {
+                let mut out = FirstBlockers::default();
+                candidates.nearest_batch(&aggregate, &batch, &mut out);
+                out.blockers
+            };
             for lane in (0..16).filter(|&l| batch.active[l]) {
                 let alone = candidates.nearest(&aggregate, &batch.ray(lane), batch.t_max[lane]);
                 assert_eq!(got[lane], alone, "round {round} lane {lane}");
@@ -1384,7 +1408,11 @@ mod tests {
                 hit += usize::from(full.is_some());
             }
             assert_eq!(
-                candidates.nearest_batch(&aggregate, &batch).blockers,
+                {
+                    let mut out = FirstBlockers::default();
+                    candidates.nearest_batch(&aggregate, &batch, &mut out);
+                    out.blockers
+                },
                 expected,
                 "{apex}"
             );
@@ -1472,7 +1500,8 @@ mod tests {
                 let feeler = Ray::spawn(apex, DVec3::Y, direction);
                 batch.set(i, &feeler, to_center.dot(direction), true);
             }
-            let first = candidates.nearest_batch(&aggregate, &batch);
+            let mut first = FirstBlockers::default();
+            candidates.nearest_batch(&aggregate, &batch, &mut first);
             for i in 0..16 {
                 let mut feeler = batch.ray(i);
                 let direction = feeler.direction;
@@ -1480,8 +1509,10 @@ mod tests {
                 let mut blocker = first.blockers[i];
                 assert_eq!(blocker, candidates.nearest(&aggregate, &feeler, remaining));
                 let mut beyond = [f64::INFINITY; MAX_CANDIDATES];
-                let (slot, ends) = first.ends[i];
-                beyond[slot] = ends.max(0.0);
+                let (slot, ends) = (first.slots[i] as usize, first.ends[i]);
+                if ends.is_finite() {
+                    beyond[slot] = ends.max(0.0);
+                }
                 known += usize::from(ends.is_finite());
                 let mut travelled = 0.0;
                 chains += 1;
@@ -1559,7 +1590,11 @@ mod tests {
             }
             assert_eq!(candidates.any_hit_batch(&aggregate, &batch), expected);
             assert_eq!(
-                candidates.nearest_batch(&aggregate, &batch).blockers,
+                {
+                    let mut out = FirstBlockers::default();
+                    candidates.nearest_batch(&aggregate, &batch, &mut out);
+                    out.blockers
+                },
                 expected_nearest
             );
             blocked += expected.iter().filter(|&&b| b).count();

@@ -208,7 +208,7 @@ impl Cone {
     /// The unit world normal of the crossing of `ray` at `t` on `part`
     /// (see [`nearest_crossings`](Self::nearest_crossings)), as
     /// [`intersect`](Self::intersect) gives it.
-    #[inline]
+    #[inline(always)]
     pub fn crossing_normal(&self, ray: &Ray, t: f64, part: u8) -> DVec3 {
         let n = match part {
             BASE => -DVec3::Z,

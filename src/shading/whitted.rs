@@ -13,7 +13,7 @@ use glam::DVec3;
 use super::glossy::{ggx_alpha, glossy_reflection, glossy_refraction, sample_ggx_normal};
 use super::optics::{fresnel_dielectric, reflect, refract, schlick};
 use super::{Fresnel, Material};
-use crate::accel::{Blocker, FeelerBatch, MAX_CANDIDATES, ShadowCandidates, simd};
+use crate::accel::{Blocker, FeelerBatch, FirstBlockers, MAX_CANDIDATES, ShadowCandidates, simd};
 use crate::geometry::Hit;
 use crate::lights::{Light, LightSample, LightSampler, SAMPLE_BATCH};
 use crate::math::ray::SpawnOrigins;
@@ -631,6 +631,7 @@ impl<'a> Whitted<'a> {
         let mut batch = ArrayVec::<LightSample, SAMPLE_BATCH>::new();
         let mut feelers = FeelerBatch::<SAMPLE_BATCH>::default();
         let mut shade = [DVec3::ZERO; SAMPLE_BATCH];
+        let mut first = FirstBlockers::default();
         for start in (0..count).step_by(SAMPLE_BATCH) {
             // Draw a batch of directions first (vector code), then trace
             // them; the draws and the sum keep their order.
@@ -645,7 +646,8 @@ impl<'a> Whitted<'a> {
                 Self::set_feelers(&mut feelers, &origins, point.n, &batch);
                 let aggregate = &self.scene.aggregate;
                 if self.scene.transparent_shadows {
-                    nearest = Some(c.nearest_batch(aggregate, &feelers));
+                    c.nearest_batch(aggregate, &feelers, &mut first);
+                    nearest = Some(&first);
                 } else {
                     blocked = Some(c.any_hit_batch(aggregate, &feelers));
                 }
@@ -671,7 +673,7 @@ impl<'a> Whitted<'a> {
                                 let (feeler, gap) = origins.spawn(sample.direction);
                                 let remaining = sample.distance - gap;
                                 let c = candidates.as_ref();
-                                let ends = Some(nearest.ends[k]);
+                                let ends = Some((nearest.slots[k] as usize, nearest.ends[k]));
                                 self.transmission(feeler, remaining, first, ends, c, stats)
                             }
                         }
@@ -854,7 +856,7 @@ impl<'a> Whitted<'a> {
         // Where each candidate's surfaces end along the line (see
         // `ShadowCandidates::nearest_along`), measured from `feeler`.
         let mut beyond = [f64::INFINITY; MAX_CANDIDATES];
-        if let Some((slot, at)) = first_ends {
+        if let Some((slot, at)) = first_ends.filter(|e| e.1.is_finite()) {
             beyond[slot] = at.max(0.0);
         }
         let mut travelled = 0.0;
