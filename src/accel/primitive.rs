@@ -145,6 +145,22 @@ impl Shape {
         }
     }
 
+    /// Whether a line going along `direction` that crosses the surface
+    /// where its outward normal is `normal` meets the shape nowhere further
+    /// on: it leaves a convex solid there, or the shape is flat. A feeler
+    /// continued through glass skips a shape it has passed for good.
+    #[inline]
+    pub fn passed_for_good(&self, direction: DVec3, normal: DVec3) -> bool {
+        match self {
+            Shape::Sphere(_) | Shape::Ellipsoid(_) | Shape::Cuboid(_) => {
+                direction.dot(normal) > 0.0
+            }
+            Shape::Cone(c) => !c.open && direction.dot(normal) > 0.0,
+            Shape::Plane(_) | Shape::Polygon(_) | Shape::Disc(_) => true,
+            Shape::Mesh(_) | Shape::Torus(_) | Shape::Csg(_) => false,
+        }
+    }
+
     /// Whether the shape is hit with t in (t_min, t_max) (any-hit: meshes
     /// stop at the first triangle found).
     #[inline]

@@ -59,9 +59,10 @@ pub struct FirstBlockers<const N: usize> {
     pub slots: [u32; N],
     /// How far along each lane's feeler its blocker's candidate has
     /// surfaces (+∞: not known): a CSG asked over the feeler's whole reach
-    /// says, so that a feeler continued past its last surface (out of a
-    /// glass solid) skips it, as [`ShadowCandidates::nearest_along`] skips
-    /// one it asked itself.
+    /// says, and so does a convex solid the feeler leaves or a flat shape
+    /// ([`Shape::passed_for_good`]), so that a feeler continued past the
+    /// last surface (out of a glass solid) skips it, as
+    /// [`ShadowCandidates::nearest_along`] skips a CSG it asked itself.
     pub ends: [f64; N],
 }
 
@@ -806,17 +807,38 @@ impl ShadowCandidates {
                 continue;
             }
             let p = &aggregate.primitives[self.primitives[nearest[k] as usize] as usize];
-            out.blockers[k] = match &p.shape {
+            let blocker = match &p.shape {
                 Shape::Sphere(s) => {
                     let h = s.hit_at(&feelers.ray(k), closest[k]);
-                    Some(Blocker {
+                    Blocker {
                         t: h.t,
                         normal: h.normal,
                         material: p.material,
-                    })
+                    }
                 }
-                _ => found[k],
+                // Every other kind kept its hit where it became the nearest.
+                _ => match found[k] {
+                    Some(b) => b,
+                    None => {
+                        out.blockers[k] = None;
+                        continue;
+                    }
+                },
             };
+            // A feeler leaving a convex solid (or crossing a flat shape)
+            // has passed it for good: its surfaces end here. (A CSG said
+            // where it ends above.)
+            if !matches!(p.shape, Shape::Csg(_) | Shape::Torus(_) | Shape::Mesh(_)) {
+                let direction = DVec3::new(
+                    feelers.direction[0][k],
+                    feelers.direction[1][k],
+                    feelers.direction[2][k],
+                );
+                if p.shape.passed_for_good(direction, blocker.normal) {
+                    ends[k] = blocker.t;
+                }
+            }
+            out.blockers[k] = Some(blocker);
         }
         out.slots = nearest;
         out.ends = ends;
@@ -1075,6 +1097,67 @@ mod tests {
             }
         }
         assert!(met > lanes / 10 && met < lanes * 9 / 10, "{met}/{lanes}");
+    }
+
+    /// `Shape::passed_for_good`, which lets the batch say a feeler's first
+    /// solid ends where it leaves it: from there (pushed off as the next
+    /// feeler is) the line meets the shape no more; it is claimed only
+    /// for convex solids left and flat shapes, never for a torus or an
+    /// open cone, which a line can meet again.
+    #[test]
+    fn a_line_that_passed_a_shape_for_good_meets_it_no_more() {
+        use crate::geometry::{Cone, Cuboid, Torus};
+        use crate::math::Transform;
+        use glam::{DAffine3, DQuat};
+        let mut rng = PixelRng::new(5, 7, 3);
+        let (mut passed, mut again) = (0, 0);
+        for i in 0..6000 {
+            let axis = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) - 0.5;
+            let transform = Transform::from_affine(DAffine3::from_scale_rotation_translation(
+                DVec3::new(
+                    0.5 + rng.uniform(),
+                    0.5 + rng.uniform(),
+                    0.5 + rng.uniform(),
+                ),
+                DQuat::from_axis_angle(axis.normalize(), rng.uniform() * 3.0),
+                DVec3::ZERO,
+            ))
+            .unwrap();
+            let shape = match i % 5 {
+                0 => Shape::Cuboid(Box::new(Cuboid::new(
+                    DVec3::splat(-0.5),
+                    DVec3::splat(0.5),
+                    transform,
+                ))),
+                1 | 2 => Shape::Cone(Box::new(Cone {
+                    base_radius: 0.5,
+                    cap_radius: 0.25 * (i % 3) as f64,
+                    open: i % 2 == 0,
+                    transform,
+                })),
+                3 => ball(DVec3::ZERO, 0.6),
+                _ => Shape::Torus(Box::new(Torus {
+                    major_radius: 0.6,
+                    minor_radius: 0.2,
+                    transform,
+                })),
+            };
+            let origin = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 2.0 - 1.0;
+            let direction =
+                (DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) - 0.5).normalize();
+            let Some(h) = shape.intersect(&Ray::new(origin, direction), 0.0, f64::INFINITY) else {
+                continue;
+            };
+            let next = Ray::spawn(origin + h.t * direction, h.normal, direction);
+            let met_again = shape.intersect(&next, 0.0, f64::INFINITY).is_some();
+            if shape.passed_for_good(direction, h.normal) {
+                assert!(!met_again, "{shape:?} {origin} {direction}");
+                passed += 1;
+            } else {
+                again += usize::from(met_again);
+            }
+        }
+        assert!(passed > 300 && again > 300, "{passed} {again}");
     }
 
     /// Turned boxes and cylinders and a floor slab: the face-plane culling
