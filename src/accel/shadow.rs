@@ -682,6 +682,7 @@ impl ShadowCandidates {
     /// candidates in the same order, so the same one wins a tie. Spheres
     /// are tested against every lane at once by [`sphere_first_root`];
     /// other shapes lane by lane.
+    ///
     /// The answers are written into `out` (not returned: a copy of them
     /// out of the vector code's frame cost a `memcpy` per batch).
     pub fn nearest_batch<const N: usize>(
@@ -713,8 +714,9 @@ impl ShadowCandidates {
         // that is not a sphere (a sphere's is made from t at the end).
         let mut nearest = [NONE; N];
         let mut found = [None; N];
-        // Where the nearest CSG so far ends along each lane (see
-        // `FirstBlockers::ends`).
+        // Where the nearest candidate so far ends along each lane, where a
+        // CSG's query said (see `FirstBlockers::ends`; a convex solid's is
+        // worked out at the end, for the nearest only).
         let mut ends = [f64::INFINITY; N];
         for (slot, &i) in self.primitives[..self.len].iter().enumerate() {
             let p = &aggregate.primitives[i as usize];
