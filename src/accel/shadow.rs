@@ -12,7 +12,7 @@ use glam::DVec3;
 use super::simd::Job;
 use super::{Aggregate, PACKET, Shape, simd};
 use crate::geometry::Aabb;
-use crate::geometry::csg::{ALL_CHILDREN, Boundary, ChildMask, Csg, CsgOp, solo_ends};
+use crate::geometry::csg::{ALL_CHILDREN, Boundary, ChildMask, Csg, CsgChild, CsgOp, solo_ends};
 use crate::geometry::sphere::{sphere_blocks, sphere_first_root};
 use crate::math::Ray;
 use crate::math::ray::RELATIVE_OFFSET;
@@ -435,10 +435,7 @@ impl ShadowCandidates {
         t_max: f64,
     ) -> (Option<Boundary<'a>>, f64) {
         let mask = self.children[slot];
-        match c.solo(mask) {
-            Some(child) => solo_ends(child, feeler, (t_min, t_max)),
-            None => c.nearest_and_last_boundary_among(feeler, t_min, t_max, mask),
-        }
+        csg_query(c, c.solo(mask), mask, feeler, (t_min, t_max))
     }
 
     /// Whether `feeler` meets the candidate in `slot` within (t_min,
@@ -545,6 +542,22 @@ impl ShadowCandidates {
             }
         }
         false
+    }
+}
+
+/// [`ShadowCandidates::csg_ends`] with the CSG's lone child (`Csg::solo`
+/// of `mask`) already found.
+#[inline(always)]
+fn csg_query<'a>(
+    c: &'a Csg,
+    solo: Option<&'a CsgChild>,
+    mask: ChildMask,
+    feeler: &Ray,
+    window: (f64, f64),
+) -> (Option<Boundary<'a>>, f64) {
+    match solo {
+        Some(child) => solo_ends(child, feeler, window),
+        None => c.nearest_and_last_boundary_among(feeler, window.0, window.1, mask),
     }
 }
 
@@ -756,18 +769,14 @@ impl ShadowCandidates {
                     }
                 }
                 Shape::Csg(c) => {
+                    // Whether one child stands for the CSG: once per batch.
                     let (mask, solo) = (self.children[slot], c.solo(self.children[slot]));
                     for k in 0..N {
                         if !feelers.active[k] {
                             continue;
                         }
                         let feeler = feelers.ray(k);
-                        let (end, last) = match solo {
-                            Some(child) => solo_ends(child, &feeler, (0.0, closest[k])),
-                            None => {
-                                c.nearest_and_last_boundary_among(&feeler, 0.0, closest[k], mask)
-                            }
-                        };
+                        let (end, last) = csg_query(c, solo, mask, &feeler, (0.0, closest[k]));
                         // Over the whole reach the last end is the
                         // solid's last; within a nearer hit's, unknown.
                         let whole = closest[k] == feelers.t_max[k];

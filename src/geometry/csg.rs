@@ -820,9 +820,7 @@ impl Csg {
         let last = last_end(&work.stack, work.window).map_or(end.t, |e| e.t);
         (Some(work.boundary(end)), last)
     }
-}
 
-impl Csg {
     /// The one child that is the whole solid within a window that only the
     /// children in `mask` may meet (see [`children_meeting`](Self::children_meeting)):
     /// a difference's first child with every subtrahend left out, or a

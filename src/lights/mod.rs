@@ -517,7 +517,7 @@ impl LightSampler {
                 let mut draws = [0.0; SAMPLE_DRAWS * SAMPLE_BATCH];
                 rng.fill_uniform(&mut draws[..SAMPLE_DRAWS * wanted]);
                 out.extend((0..wanted).map(|k| {
-                    let jitter = DVec2::new(draws[2 * k], draws[2 * k + 1]);
+                    let jitter = DVec2::new(draws[SAMPLE_DRAWS * k], draws[SAMPLE_DRAWS * k + 1]);
                     self.area_sample(first + k, jitter)
                 }));
             }
@@ -535,7 +535,7 @@ impl LightSampler {
                 rng.fill_uniform(&mut draws[..SAMPLE_DRAWS * wanted]);
                 let mut u = [DVec2::ZERO; SAMPLE_BATCH];
                 for (k, u) in u.iter_mut().enumerate().take(wanted) {
-                    let jitter = DVec2::new(draws[2 * k], draws[2 * k + 1]);
+                    let jitter = DVec2::new(draws[SAMPLE_DRAWS * k], draws[SAMPLE_DRAWS * k + 1]);
                     *u = strata.point_at(first + k, jitter);
                 }
                 // Structure of arrays, every lane computed (the unused ones
