@@ -74,6 +74,40 @@ def bunny():
     return path
 
 
+def subdivided(vertices, faces, levels):
+    """Each triangle split into four at its edges' midpoints, `levels`
+    times (the surface unchanged, 4**levels times the triangles; an edge's
+    midpoint is shared by the two triangles on it, so a closed mesh stays
+    closed)."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    for _ in range(levels):
+        edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+        unique, inverse = np.unique(np.sort(edges, axis=1), axis=0, return_inverse=True)
+        mid = len(v) + inverse.reshape(3, -1)
+        v = np.concatenate([v, (v[unique[:, 0]] + v[unique[:, 1]]) / 2])
+        ab, bc, ca = mid
+        a, b, c = f.T
+        f = np.concatenate([np.stack(t, 1) for t in ((a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca))])
+    return v, f
+
+
+def bunny_940k():
+    """The bunny's 3,674 triangles subdivided four times: 940,544."""
+    path = os.path.join(DATA, "bunny940k.ply")
+    if os.path.exists(path):
+        return path
+    data = open(bunny(), "rb").read()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    header = data[:end].decode().split("\n")
+    nv = int(next(l for l in header if l.startswith("element vertex")).split()[-1])
+    nf = int(next(l for l in header if l.startswith("element face")).split()[-1])
+    v = np.frombuffer(data, dtype="<f4", count=3 * nv, offset=end).reshape(nv, 3)
+    rec = np.frombuffer(data, dtype=[("n", "u1"), ("i", "<i4", 3)], count=nf, offset=end + 12 * nv)
+    write_ply(path, *subdivided(v, rec["i"], 4))
+    return path
+
+
 def terrain(n=708):
     """A rolling heightfield of 2·(n−1)² ≈ 1M triangles, as binary PLY."""
     path = os.path.join(DATA, f"terrain{n}.ply")

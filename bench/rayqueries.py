@@ -14,8 +14,9 @@ thread, so its 2-thread cells are empty; Embree has no counting query).
 Each measurement is taken in rounds that alternate the engines; the table
 gives the range over the rounds.
 
-Then pbrt-v4's watertightness test: rays from random points inside a
-randomly perturbed icosphere and torus, aimed at random directions, at
+Then pbrt-v4's watertightness test: 10M rays (a third per mesh) from
+random points inside a randomly perturbed icosphere, the bunny (closed:
+every edge on two triangles) and a torus, aimed at random directions, at
 vertices and at points on edges; a ray that finds no hit has escaped. The
 same rays (float32, as the others take them) go to each engine.
 
@@ -23,6 +24,7 @@ Set-up: bench/.venv (benchenv) with embreex, numpy and open3d-cpu from
 PyPI; this tree's package is installed there with `pip install ./python`
 (--no-install skips that).
 Usage: python3 bench/rayqueries.py [--rounds N] [--rays N] [--no-install]
+           [--meshes bunny,bunny940k,terrain] [--watertight-rays N (0: none)]
        python3 bench/rayqueries.py --dump DIR   (the meshes and rays as raw
        f64/u32 files for examples/rayquerybench.rs, Prism's side in Rust)
 """
@@ -65,7 +67,8 @@ def read_ply(path):
 def meshes():
     import meshes as m  # bench/meshes.py: fetches the bunny, writes the terrain
     os.makedirs(m.DATA, exist_ok=True)
-    return [("bunny", read_ply(m.bunny())), ("terrain 1M", read_ply(m.terrain()))]
+    return [("bunny", read_ply(m.bunny())), ("bunny940k", read_ply(m.bunny_940k())),
+            ("terrain 1M", read_ply(m.terrain()))]
 
 
 def camera_rays(v, n):
@@ -85,7 +88,10 @@ def camera_rays(v, n):
     return np.ascontiguousarray(o, dtype=np.float32), np.ascontiguousarray(d, dtype=np.float32)
 
 
-def random_rays(v, n, rng):
+def random_rays(v, n, seed):
+    """Origins uniform in the box of `v`, directions uniform; `seed` (the
+    mesh's index) keeps each mesh's rays whichever meshes are run."""
+    rng = np.random.default_rng([1, seed])
     lo, hi = v.min(0), v.max(0)
     o = rng.uniform(lo, hi, size=(n, 3))
     d = rng.normal(size=(n, 3))
@@ -270,12 +276,11 @@ def dump(out, n):
     """Writes MESH.v (f64), MESH.f (u32) and MESH.KIND.o / .d (f64) for the
     bunny and the terrain: the rays main() times, as Prism receives them."""
     os.makedirs(out, exist_ok=True)
-    rng = np.random.default_rng(1)
-    for name, (v, f) in meshes():
+    for seed, (name, (v, f)) in enumerate(meshes()):
         tag = name.split()[0]
         v.astype(np.float64).tofile(os.path.join(out, f"{tag}.v"))
         f.astype(np.uint32).tofile(os.path.join(out, f"{tag}.f"))
-        for kind, (o, d) in (("coherent", camera_rays(v, n)), ("incoherent", random_rays(v, n, rng))):
+        for kind, (o, d) in (("coherent", camera_rays(v, n)), ("incoherent", random_rays(v, n, seed))):
             o.astype(np.float64).tofile(os.path.join(out, f"{tag}.{kind}.o"))
             d.astype(np.float64).tofile(os.path.join(out, f"{tag}.{kind}.d"))
 
@@ -284,9 +289,12 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--rays", type=int, default=1_000_000)
-    parser.add_argument("--watertight-rays", type=int, default=1_000_000)
+    parser.add_argument("--watertight-rays", type=int, default=10_000_000,
+                        help="in all, a third per mesh")
     parser.add_argument("--no-install", action="store_true")
     parser.add_argument("--dump", metavar="DIR")
+    parser.add_argument("--meshes", default="bunny,bunny940k,terrain",
+                        help="comma-separated: which of bunny, bunny940k, terrain to time")
     args = parser.parse_args()
     if args.dump:
         dump(args.dump, args.rays)
@@ -300,12 +308,14 @@ def main():
     results = []
     tmp = os.path.join(ROOT, "target", "rayqueries")
     os.makedirs(tmp, exist_ok=True)
-    for name, (v, f) in meshes():
+    for seed, (name, (v, f)) in enumerate(meshes()):
+        if name.split()[0] not in args.meshes.split(","):
+            continue
         np.save(os.path.join(tmp, "v.npy"), v)
         np.save(os.path.join(tmp, "f.npy"), f)
         mem = {e: [b / len(f) for b in peak_memory(e, os.path.join(tmp, "v.npy"), os.path.join(tmp, "f.npy"))]
                for e in ENGINES}
-        rays = {"coherent": camera_rays(v, args.rays), "incoherent": random_rays(v, args.rays, rng)}
+        rays = {"coherent": camera_rays(v, args.rays), "incoherent": random_rays(v, args.rays, seed)}
         build = {e: [] for e in ENGINES}
         times = {}
         answers = {}
@@ -361,6 +371,8 @@ def main():
                           f"| {ratios[0]} | {ratios[1]} |")
         print(f"hit/miss agreement with prism on {name}: " +
               ", ".join(f"{k[1]} {k[0]} {v:.6f}" for k, v in agree.items()))
+    if args.watertight_rays == 0:
+        return
     print()
     print("Watertightness (pbrt-v4): rays from inside perturbed closed meshes; escapes (no hit)")
     print("| mesh | triangles | rays | prism | embree | open3d |")
@@ -373,11 +385,33 @@ def main():
         u = rng.uniform(0, 2 * np.pi, n)
         return np.stack([np.cos(u), np.sin(u), np.zeros(n)], 1) + rng.uniform(-0.1, 0.1, size=(n, 3))
 
+    def bunny(jitter):
+        import meshes as m
+        v, f = read_ply(m.bunny())
+        return (v + rng.uniform(-jitter, jitter, size=v.shape)).astype(np.float32), f.astype(np.int64)
+
+    def in_mesh(v, f):
+        """Points of the mesh's box that Prism's exact `contains` puts
+        inside (float32, as every engine gets them)."""
+        import prism
+        scene = prism.RayScene(v.astype(np.float64), f)
+
+        def inside(n):
+            found = []
+            while sum(map(len, found)) < n:
+                p = rng.uniform(v.min(0), v.max(0), size=(n, 3)).astype(np.float32)
+                found.append(p[scene.contains(p.astype(np.float64))])
+            return np.concatenate(found)[:n].astype(np.float64)
+        return inside
+
+    per_mesh = args.watertight_rays // 3
+    bunny_mesh = bunny(0.02)
     for label, (v, f), inside in [
         ("icosphere (5 levels, radii +-10%)", icosphere(5, 0.1, rng), in_ball),
+        ("bunny (closed, vertices +-0.02)", bunny_mesh, in_mesh(*bunny_mesh)),
         ("torus 256x128 (vertices +-0.004)", torus(256, 128, 0.004, rng), in_tube),
     ]:
-        o, d = watertight_rays(v, f, inside, args.watertight_rays, rng)
+        o, d = watertight_rays(v, f, inside, per_mesh, rng)
         escapes = {}
         for e in ENGINES:
             eng = CLASSES[e](v, f)

@@ -6,7 +6,7 @@
 //! Usage: cargo run --release --example rayquerybench -- DIR [ROUNDS] [FILTER]
 //! DIR holds `MESH.v` (f64 x, y, z per vertex), `MESH.f` (u32 a, b, c per
 //! triangle), `MESH.KIND.o` and `MESH.KIND.d` (f64 origins, directions)
-//! for MESH in bunny, terrain and KIND in coherent, incoherent, as
+//! for MESH in bunny, bunny940k, terrain and KIND in coherent, incoherent, as
 //! `bench/rayqueries.py --dump DIR` writes them. FILTER keeps the rows whose
 //! name contains it. Prints one line per row: the name, the CPU seconds of
 //! each round (the rays' check, as `RayScene`'s Python methods make it,
@@ -57,12 +57,16 @@ fn main() {
     let dir = Path::new(args.get(1).map(String::as_str).unwrap_or("target/rq"));
     let rounds: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(3);
     let filter = args.get(3).cloned().unwrap_or_default();
-    for mesh in ["bunny", "terrain"] {
-        // A filter naming the other mesh skips this one's load.
-        if ["bunny", "terrain"]
-            .iter()
-            .any(|m| *m != mesh && filter.contains(m))
-        {
+    for mesh in ["bunny", "bunny940k", "terrain"] {
+        // A filter no row of this mesh matches skips its load.
+        let matches = ["coherent", "incoherent"].iter().any(|kind| {
+            ["nearest", "any", "count"].iter().any(|query| {
+                [1, 2]
+                    .iter()
+                    .any(|t| format!("{mesh} {kind} {query} {t}t").contains(&filter))
+            })
+        });
+        if !matches {
             continue;
         }
         let v = read_f64(&dir.join(format!("{mesh}.v")));

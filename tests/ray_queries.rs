@@ -422,36 +422,88 @@ fn hits_equal_the_renderers_bit_for_bit() {
     }
 }
 
+/// The Stanford bunny (3,674 triangles, closed: every edge on two
+/// triangles), tests/data/bunny.ply, binary PLY as bench/meshes.py writes
+/// it from the npm package `bunny`; each vertex moved by up to `jitter`
+/// along each axis.
+fn bunny(jitter: f64, rng: &mut Rng) -> Soup {
+    let data = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/bunny.ply")).unwrap();
+    let end = data.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+    let header = std::str::from_utf8(&data[..end]).unwrap();
+    let count = |element: &str| -> usize {
+        let line = header.lines().find(|l| l.starts_with(element)).unwrap();
+        line.rsplit(' ').next().unwrap().parse().unwrap()
+    };
+    let (nv, nf) = (count("element vertex"), count("element face"));
+    let f32_at =
+        |i: usize| f32::from_le_bytes(data[end + 4 * i..end + 4 * i + 4].try_into().unwrap());
+    let vertices = (0..3 * nv)
+        .map(|i| f64::from(f32_at(i)) + jitter * rng.range(-1.0, 1.0))
+        .collect();
+    let faces_at = end + 12 * nv;
+    let faces = (0..nf)
+        .flat_map(|k| {
+            let record = &data[faces_at + 13 * k..faces_at + 13 * (k + 1)];
+            assert_eq!(record[0], 3);
+            (0..3)
+                .map(move |j| u32::from_le_bytes(record[1 + 4 * j..5 + 4 * j].try_into().unwrap()))
+        })
+        .collect();
+    Soup { vertices, faces }
+}
+
 /// pbrt-v4's watertightness test: from random points inside randomly
-/// perturbed closed meshes, rays in random directions and aimed at
-/// vertices and at points on edges must all hit, and `contains` must
-/// hold every origin.
+/// perturbed closed meshes (icospheres, tori, the bunny), rays in random
+/// directions and aimed at vertices and at points on edges must all hit,
+/// and `contains` must hold every origin.
 #[test]
 fn no_ray_escapes_a_closed_mesh() {
     let mut rng = Rng(3);
     let mut total = 0;
-    for round in 0..6 {
-        let (soup, inside): (Soup, fn(&mut Rng) -> DVec3) = if round % 2 == 0 {
-            (icosphere(2 + round / 2, 0.1, &mut rng), |r: &mut Rng| {
-                r.direction() * r.range(0.0, 0.5)
-            })
+    for round in 0..7 {
+        let (soup, points): (Soup, Vec<DVec3>) = if round == 6 {
+            // Inside the bunny: points of its box the exact crossing count
+            // puts inside.
+            let soup = bunny(0.02, &mut rng);
+            let triangles = soup.triangles();
+            let (lo, hi) = triangles.iter().flatten().fold(
+                (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+                |(lo, hi), &p| (lo.min(p), hi.max(p)),
+            );
+            let mut points = Vec::new();
+            while points.len() < 200 {
+                let p = DVec3::new(
+                    rng.range(lo.x, hi.x),
+                    rng.range(lo.y, hi.y),
+                    rng.range(lo.z, hi.z),
+                );
+                if exact_inside(&triangles, p, &mut rng) {
+                    points.push(p);
+                }
+            }
+            (soup, points)
+        } else if round % 2 == 0 {
+            let soup = icosphere(2 + round / 2, 0.1, &mut rng);
+            let points = (0..400)
+                .map(|_| rng.direction() * rng.range(0.0, 0.5))
+                .collect();
+            (soup, points)
         } else {
-            (
-                torus(24 + 8 * round, 12 + 4 * round, 0.02, &mut rng),
-                |r: &mut Rng| {
-                    let u = r.range(0.0, std::f64::consts::TAU);
-                    DVec3::new(u.cos(), u.sin(), 0.0) + r.direction() * r.range(0.0, 0.15)
-                },
-            )
+            let soup = torus(24 + 8 * round, 12 + 4 * round, 0.02, &mut rng);
+            let points = (0..400)
+                .map(|_| {
+                    let u = rng.range(0.0, std::f64::consts::TAU);
+                    DVec3::new(u.cos(), u.sin(), 0.0) + rng.direction() * rng.range(0.0, 0.15)
+                })
+                .collect();
+            (soup, points)
         };
         let mut scene = RayScene::new();
         scene.add_mesh(&soup.vertices, &soup.faces, None).unwrap();
         assert_eq!(scene.is_closed(0), Some(true));
         let triangles = soup.triangles();
-        let (mut o, mut d, mut points) = (Vec::new(), Vec::new(), Vec::new());
-        for _ in 0..400 {
-            let p = inside(&mut rng);
-            points.extend(p.to_array());
+        let (mut o, mut d) = (Vec::new(), Vec::new());
+        for &p in &points {
             for j in 0..16 {
                 let [a, b, c] = triangles[rng.below(triangles.len())];
                 let target = match j % 4 {
@@ -484,13 +536,16 @@ fn no_ray_escapes_a_closed_mesh() {
                 .unwrap();
             assert!(counts.iter().all(|&c| c >= 1));
         }
+        let points: Vec<f64> = points.iter().flat_map(|p| p.to_array()).collect();
         let held = scene.contains(&points, &options(2)).unwrap();
         assert!(
             held.iter().all(|&h| h),
             "round {round}: a point inside was called outside"
         );
+        // Beyond every mesh's box (the bunny's reaches about 5 from the
+        // origin).
         let outside: Vec<f64> = (0..200)
-            .flat_map(|_| (rng.direction() * 3.0).to_array())
+            .flat_map(|_| (rng.direction() * 20.0).to_array())
             .collect();
         assert!(
             scene
@@ -501,7 +556,7 @@ fn no_ray_escapes_a_closed_mesh() {
         );
         total += batch.len();
     }
-    assert!(total >= 6 * 6400);
+    assert!(total >= 6 * 6400 + 3200);
 }
 
 /// Shewchuk's exact orientation of d against the plane of a, b, c.

@@ -168,6 +168,44 @@ def test_contains_and_watertightness():
     assert not scene.contains(centre + 1e-12 * n).any()
 
 
+def bunny(jitter, seed):
+    """The Stanford bunny of tests/data/bunny.ply (3,674 triangles, closed),
+    each vertex moved by up to `jitter` along each axis."""
+    data = (ROOT / "tests" / "data" / "bunny.ply").read_bytes()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    header = data[:end].decode().split("\n")
+    nv = int(next(line for line in header if line.startswith("element vertex")).split()[-1])
+    nf = int(next(line for line in header if line.startswith("element face")).split()[-1])
+    v = np.frombuffer(data, dtype="<f4", count=3 * nv, offset=end).reshape(nv, 3).astype(np.float64)
+    rec = np.frombuffer(data, dtype=[("n", "u1"), ("i", "<i4", 3)], count=nf, offset=end + 12 * nv)
+    rng = np.random.default_rng(seed)
+    return v + rng.uniform(-jitter, jitter, size=v.shape), rec["i"].astype(np.int64)
+
+
+def test_no_ray_escapes_the_bunny():
+    v, f = bunny(0.02, seed=10)
+    scene = prism.RayScene(v, f)
+    assert scene.is_closed(0)
+    rng = np.random.default_rng(11)
+    points = rng.uniform(v.min(0), v.max(0), size=(4000, 3))
+    inside = scene.contains(points)
+    assert 400 < inside.sum() < 3600
+    # Along random directions (through no edge, almost surely) the
+    # crossings' parity is inside or outside.
+    d = rng.normal(size=points.shape)
+    assert ((scene.count_intersections(points, d) % 2 == 1) == inside).all()
+    # From inside, at random directions, at vertices and at points on
+    # edges: every ray hits.
+    o = points[inside]
+    k = rng.integers(0, len(f), size=len(o))
+    a, b = v[f[k, 0]], v[f[k, 1]]
+    targets = np.concatenate([o + rng.normal(size=o.shape), a, a + rng.uniform(0, 1, (len(o), 1)) * (b - a)])
+    origins = np.concatenate([o] * 3)
+    for threads in (1, 2):
+        assert (scene.intersect(origins, targets - origins, threads=threads)["triangle_id"] >= 0).all()
+        assert scene.occluded(origins, targets - origins, threads=threads).all()
+
+
 def test_float32_and_noncontiguous_inputs():
     v, f = icosphere(1)
     o, d = rays(300, 7)
