@@ -360,6 +360,89 @@ fn every_query_equals_brute_force() {
     }
 }
 
+/// A pinhole camera's rows (in runs of 64 rays, as `RayScene` tests runs
+/// of rays against the meshes' roots at once) over untransformed meshes,
+/// most runs beside them: every query still equals brute force, and
+/// the test checks that many runs are ones a span rules out.
+#[test]
+fn camera_rows_beside_the_meshes_equal_brute_force() {
+    let mut rng = Rng(12);
+    let soup = random_soup(&mut rng, 200);
+    let ball = icosphere(2, 0.1, &mut rng);
+    // Four runs a row; no run holds directions of both signs on an axis
+    // (those are not tested by spans).
+    let (width, height, run) = (256, 48, 64);
+    let eye = DVec3::new(0.3, -7.0, 0.2);
+    let (mut o, mut d) = (Vec::new(), Vec::new());
+    for row in 0..height {
+        for column in 0..width {
+            let x = (column as f64 + 0.5) / width as f64 * 2.0 - 1.0;
+            let y = (row as f64 + 0.5) / height as f64 * 2.0 - 1.0;
+            o.extend(eye.to_array());
+            d.extend(DVec3::new(x * 0.9, 1.0, y * 0.7).to_array());
+        }
+    }
+    // Runs the spans rule out, found with the same public test.
+    let mesh = Mesh::new(soup.data()).unwrap();
+    let runs_ruled_out = o
+        .chunks(3 * run)
+        .zip(d.chunks(3 * run))
+        .filter(|(o, d)| {
+            let fold = |v: &[f64], f: fn(DVec3, DVec3) -> DVec3| {
+                v.chunks_exact(3).map(DVec3::from_slice).reduce(f).unwrap()
+            };
+            let span = prism::accel::NodePacket::spanning(
+                fold(o, DVec3::min),
+                fold(o, DVec3::max),
+                fold(d, DVec3::min),
+                fold(d, DVec3::max),
+            );
+            span.is_some_and(|span| !mesh.span_may_meet(&span, f64::INFINITY))
+        })
+        .count();
+    assert!(
+        runs_ruled_out >= 10,
+        "{runs_ruled_out} of {height} rows ruled out"
+    );
+    let mut two = RayScene::new();
+    two.add_mesh(&soup.vertices, &soup.faces, None).unwrap();
+    two.add_mesh(&ball.vertices, &ball.faces, None).unwrap();
+    let mut one = RayScene::new();
+    one.add_mesh(&soup.vertices, &soup.faces, None).unwrap();
+    for (scene, meshes) in [
+        (&one, vec![(soup.clone(), None)]),
+        (&two, vec![(soup.clone(), None), (ball.clone(), None)]),
+    ] {
+        for (t_min, t_max) in [(0.0, f64::INFINITY), (6.5, 7.5)] {
+            let batch = Rays::new(&o, &d, t_min, t_max).unwrap();
+            for threads in [1, 2] {
+                let hits = scene.intersect(&batch, &options(threads)).unwrap();
+                let occluded = scene.occluded(&batch, &options(threads)).unwrap();
+                let counts = scene
+                    .count_intersections(&batch, &options(threads))
+                    .unwrap();
+                let mut hit_rays = 0;
+                for k in 0..batch.len() {
+                    let (ro, rd) = batch.ray(k);
+                    let brute = brute_hits(&meshes, ro, rd, t_min, t_max);
+                    let expected = brute.first().map_or((f64::INFINITY, -1, -1), |h| {
+                        (h.0, i64::from(h.1), i64::from(h.2))
+                    });
+                    assert_eq!(
+                        (hits.t[k].to_bits(), hits.mesh_id[k], hits.triangle_id[k]),
+                        (expected.0.to_bits(), expected.1, expected.2),
+                        "ray {k}"
+                    );
+                    assert_eq!(occluded[k], !brute.is_empty(), "ray {k}");
+                    assert_eq!(counts[k] as usize, brute.len(), "ray {k}");
+                    hit_rays += usize::from(!brute.is_empty());
+                }
+                assert!(hit_rays > 100, "{hit_rays}");
+            }
+        }
+    }
+}
+
 #[test]
 fn hits_equal_the_renderers_bit_for_bit() {
     let mut rng = Rng(2);

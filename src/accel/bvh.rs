@@ -323,7 +323,21 @@ impl Bvh {
     }
 }
 
+/// Node tests a span of rays is given to show that it meets no leaf
+/// ([`Bvh::span_may_meet`]).
+const SPAN_BUDGET: usize = 8;
+
 impl Bvh {
+    /// Whether some ray `span` stands for (see [`NodePacket::spanning`])
+    /// may meet an item before `t_max`: false only where the packet's node
+    /// test, which lets through every box a ray's own test does, lets no
+    /// leaf through within [`SPAN_BUDGET`] node tests from the root
+    /// (`packet::span_reaches_leaf`), so that every such ray's traversal
+    /// ends with nothing found.
+    pub(crate) fn span_may_meet(&self, span: &NodePacket, t_max: f64) -> bool {
+        simd::kernel().span_reaches_leaf(&self.wide, span, NodeRay::box_limit(t_max), SPAN_BUDGET)
+    }
+
     /// Closest-hit traversal of a packet of rays: what
     /// [`closest`](Self::closest) does for each ray, with `test(ray,
     /// position, t_max)` in place of `test(position, t_max)`; `t_max[k]`
@@ -777,6 +791,80 @@ mod tests {
             }
         }
         assert!(through > 10_000, "{through}");
+    }
+
+    /// A span (`NodePacket::spanning`) of up to 64 rays lets through every
+    /// box one of its rays' own tests does, on every kernel; where its
+    /// search from the root finds no leaf, no ray's own traversal tests
+    /// an item.
+    #[test]
+    fn a_span_lets_through_every_box_its_rays_do() {
+        use crate::accel::simd::{Lanes, NodePacket, Scalar, packet_entries_scalar};
+        let boxes = random_boxes(600, 19);
+        let bvh = Bvh::build(boxes.iter().copied());
+        let mut rng = PixelRng::new(29, 0, 0);
+        let (mut through, mut culled, mut reached) = (0, 0, 0);
+        for i in 0..600 {
+            let eye = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 160.0 - 30.0;
+            let aim = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 100.0 - eye;
+            let (spread, jitter) = [(0.001, 0.0), (0.02, 0.0), (0.2, 0.0), (0.02, 1.0)][i % 4];
+            let rays: Vec<(DVec3, DVec3)> = (0..1 + i % 64)
+                .map(|_| {
+                    let o = eye + DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * jitter;
+                    let d = aim * (1.0 + spread * (rng.uniform() - 0.5))
+                        + DVec3::new(rng.uniform(), rng.uniform(), rng.uniform())
+                            * aim.length()
+                            * spread;
+                    (o, d)
+                })
+                .collect();
+            let fold = |f: fn(DVec3, DVec3) -> DVec3, pick: fn(&(DVec3, DVec3)) -> DVec3| {
+                rays.iter().map(pick).reduce(f).unwrap()
+            };
+            let Some(span) = NodePacket::spanning(
+                fold(DVec3::min, |r| r.0),
+                fold(DVec3::max, |r| r.0),
+                fold(DVec3::min, |r| r.1),
+                fold(DVec3::max, |r| r.1),
+            ) else {
+                continue;
+            };
+            let t_max = [f64::INFINITY, 60.0, 3.0][i % 3];
+            let limit = NodeRay::box_limit(t_max);
+            for node in &bvh.wide {
+                let (mask, _) = packet_entries_scalar(node, &span, limit);
+                for &(o, d) in &rays {
+                    let (own, _) = Scalar.entries(node, &NodeRay::new(o, d), limit);
+                    assert_eq!(own & !mask, 0, "span {i}");
+                    through += own.count_ones();
+                }
+            }
+            let may_meet = bvh.span_may_meet(&span, t_max);
+            for kernel in kernels() {
+                assert_eq!(
+                    kernel.span_reaches_leaf(&bvh.wide, &span, limit, SPAN_BUDGET),
+                    may_meet
+                );
+            }
+            if may_meet {
+                reached += 1;
+                continue;
+            }
+            culled += 1;
+            for &(o, d) in &rays {
+                let ray = NodeRay::new(o, d);
+                let tested = std::cell::Cell::new(0);
+                bvh.any(&ray, t_max, |_| {
+                    tested.set(tested.get() + 1);
+                    false
+                });
+                assert_eq!(tested.get(), 0, "span {i}: a ray of it reached an item");
+            }
+        }
+        assert!(
+            through > 10_000 && culled > 50 && reached > 50,
+            "{through} {culled} {reached}"
+        );
     }
 
     #[test]

@@ -279,3 +279,44 @@ pub fn any<L: Lanes>(
         }
     }
 }
+
+/// Whether some ray `span` stands for (`NodePacket::spanning`) may reach
+/// a leaf: the packet's node test from the root down, opening every
+/// interior child it lets through, until it lets a leaf through or has
+/// tested `budget` nodes (then it may: a span that close to the items is
+/// not worth more) or nothing is left open (then it cannot). As the test
+/// lets through every box one of the rays' own tests would, with their
+/// limits at most `limit`, no such ray's traversal then tests an item.
+#[inline(always)]
+pub fn span_reaches_leaf<L: Lanes>(
+    lanes: L,
+    wide: &[WideNode],
+    span: &NodePacket,
+    limit: f32,
+    budget: usize,
+) -> bool {
+    if wide.is_empty() {
+        return false;
+    }
+    // Each visit opens at most eight children.
+    let mut open = arrayvec::ArrayVec::<u32, 64>::new();
+    open.push(0);
+    let mut visits = 0;
+    while let Some(at) = open.pop() {
+        if visits == budget {
+            return true;
+        }
+        visits += 1;
+        let node = &wide[at as usize];
+        let (mut mask, _) = lanes.packet_entries(node, span, limit);
+        while mask != 0 {
+            let lane = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            if node.count[lane] != 0 || open.is_full() {
+                return true;
+            }
+            open.push(node.child[lane]);
+        }
+    }
+    false
+}

@@ -320,6 +320,13 @@ impl Mesh {
         self.bvh.bounds()
     }
 
+    /// Whether some ray `span` stands for (see
+    /// [`NodePacket::spanning`]) may hit a triangle before `t_max`; false
+    /// only where every such ray's search finds nothing at the root.
+    pub fn span_may_meet(&self, span: &NodePacket, t_max: f64) -> bool {
+        self.bvh.span_may_meet(span, t_max)
+    }
+
     /// Approximate heap memory in bytes.
     pub fn memory_bytes(&self) -> usize {
         self.positions.len() * 24

@@ -13,7 +13,7 @@ use rayon::prelude::*;
 use super::QueryError;
 use super::rays::{Crossings, Hits, QueryOptions, Rays};
 use super::scene::{Placed, RayScene};
-use crate::accel::PACKET;
+use crate::accel::{NodePacket, PACKET};
 use crate::geometry::Aabb;
 use crate::geometry::cuboid::slab_interval;
 use crate::geometry::mesh::{FacetHit, STREAM};
@@ -24,6 +24,19 @@ const _: () = assert!(STREAM == PACKET);
 
 /// Rays per task, and between checks of the cancel flag.
 const CHUNK: usize = 1024;
+
+/// Rays per bulk test of the meshes' trees (`RayScene::span_misses`):
+/// beside a mesh, a camera's rows hold long runs of rays that meet
+/// nothing, which then cost a few node tests between them rather than a
+/// packet's set-up and search each eight.
+const SPAN: usize = 64;
+
+/// Scenes of more meshes than this are not tested by spans (a search per
+/// mesh per span).
+const SPAN_MESHES: usize = 8;
+
+// Spans hold whole groups, so the groups are those without spans.
+const _: () = assert!(CHUNK.is_multiple_of(SPAN) && SPAN.is_multiple_of(PACKET));
 
 /// A mesh whose tree and triangles take more than this goes through
 /// streams for incoherent rays (it no longer fits the cache, so hiding
@@ -94,27 +107,37 @@ impl RayScene {
                         return Err(QueryError::Cancelled);
                     }
                     rays.check_chunk(c * CHUNK, t.len())?;
-                    for first in (0..t.len()).step_by(PACKET) {
-                        let count = PACKET.min(t.len() - first);
-                        let mut group = [MISS; PACKET];
-                        let group = &mut group[..count];
-                        self.nearest_group(rays, c * CHUNK + first, group, scale);
-                        for (k, near) in group.iter().enumerate() {
-                            let i = first + k;
-                            let Some(h) = near.hit else {
-                                // u, v and the normal stay zero.
-                                t[i] = f64::INFINITY;
-                                mesh_id[i] = -1;
-                                triangle_id[i] = -1;
-                                continue;
-                            };
-                            t[i] = h.t;
-                            mesh_id[i] = i64::from(near.mesh);
-                            triangle_id[i] = i64::from(h.triangle);
-                            u[i] = h.barycentric.y;
-                            v[i] = h.barycentric.z;
-                            let world = self.meshes[near.mesh as usize].world_normal(h.normal);
-                            normal[3 * i..3 * i + 3].copy_from_slice(&world.to_array());
+                    for block in (0..t.len()).step_by(SPAN) {
+                        let end = (block + SPAN).min(t.len());
+                        if self.span_misses(rays, c * CHUNK + block, end - block) {
+                            // u, v and the normal stay zero.
+                            t[block..end].fill(f64::INFINITY);
+                            mesh_id[block..end].fill(-1);
+                            triangle_id[block..end].fill(-1);
+                            continue;
+                        }
+                        for first in (block..end).step_by(PACKET) {
+                            let count = PACKET.min(end - first);
+                            let mut group = [MISS; PACKET];
+                            let group = &mut group[..count];
+                            self.nearest_group(rays, c * CHUNK + first, group, scale);
+                            for (k, near) in group.iter().enumerate() {
+                                let i = first + k;
+                                let Some(h) = near.hit else {
+                                    // u, v and the normal stay zero.
+                                    t[i] = f64::INFINITY;
+                                    mesh_id[i] = -1;
+                                    triangle_id[i] = -1;
+                                    continue;
+                                };
+                                t[i] = h.t;
+                                mesh_id[i] = i64::from(near.mesh);
+                                triangle_id[i] = i64::from(h.triangle);
+                                u[i] = h.barycentric.y;
+                                v[i] = h.barycentric.z;
+                                let world = self.meshes[near.mesh as usize].world_normal(h.normal);
+                                normal[3 * i..3 * i + 3].copy_from_slice(&world.to_array());
+                            }
                         }
                     }
                     Ok(())
@@ -137,9 +160,16 @@ impl RayScene {
                     }
                     rays.check_chunk(c * CHUNK, out.len())?;
                     let mut alone = ByAxes::new();
-                    for (g, group) in out.chunks_mut(PACKET).enumerate() {
-                        let first = g * PACKET;
-                        self.blocked_group(rays, c * CHUNK, first, group, scale, &mut alone);
+                    for block in (0..out.len()).step_by(SPAN) {
+                        let end = (block + SPAN).min(out.len());
+                        // Rays that meet nothing stay unblocked.
+                        if self.span_misses(rays, c * CHUNK + block, end - block) {
+                            continue;
+                        }
+                        for first in (block..end).step_by(PACKET) {
+                            let group = &mut out[first..(first + PACKET).min(end)];
+                            self.blocked_group(rays, c * CHUNK, first, group, scale, &mut alone);
+                        }
                     }
                     // The rays left to trace alone, a permutation at a
                     // time (see `ByAxes`).
@@ -174,9 +204,16 @@ impl RayScene {
                     }
                     rays.check_chunk(c * CHUNK, out.len())?;
                     let mut alone = ByAxes::new();
-                    for (g, group) in out.chunks_mut(STREAM).enumerate() {
-                        let first = g * STREAM;
-                        self.count_group(rays, c * CHUNK, first, group, scale, &mut alone);
+                    for block in (0..out.len()).step_by(SPAN) {
+                        let end = (block + SPAN).min(out.len());
+                        // Rays that meet nothing keep a count of 0.
+                        if self.span_misses(rays, c * CHUNK + block, end - block) {
+                            continue;
+                        }
+                        for first in (block..end).step_by(STREAM) {
+                            let group = &mut out[first..(first + STREAM).min(end)];
+                            self.count_group(rays, c * CHUNK, first, group, scale, &mut alone);
+                        }
                     }
                     // As in `occluded`.
                     if let Some(placed) = self.meshes.first() {
@@ -249,6 +286,40 @@ impl RayScene {
             }
         }
         Ok(out)
+    }
+
+    /// Whether rays `first..first + n` certainly hit nothing: the range
+    /// of their origins and directions, axis by axis, as one node packet
+    /// (`NodePacket::spanning`), reaches no leaf of any mesh's tree
+    /// (`Mesh::span_may_meet`: a few node tests from the root), its test
+    /// letting through every box one of the rays' own tests would. Only runs
+    /// whose directions share their signs are tested (a camera's or a
+    /// lidar's; others are given up at their first ray of other signs),
+    /// and only in scenes of at most [`SPAN_MESHES`] meshes, none
+    /// transformed (whose rays are traced in the mesh's own space).
+    fn span_misses(&self, rays: &Rays, first: usize, n: usize) -> bool {
+        if self.meshes.len() > SPAN_MESHES || self.meshes.iter().any(|m| m.transform.is_some()) {
+            return false;
+        }
+        let (o, d) = rays.ray(first);
+        let signs = d.cmpgt(DVec3::ZERO).bitmask();
+        let (mut origin_lo, mut origin_hi, mut direction_lo, mut direction_hi) = (o, o, d, d);
+        for k in first + 1..first + n {
+            let (o, d) = rays.ray(k);
+            if d.cmpgt(DVec3::ZERO).bitmask() != signs {
+                return false;
+            }
+            (origin_lo, origin_hi) = (origin_lo.min(o), origin_hi.max(o));
+            (direction_lo, direction_hi) = (direction_lo.min(d), direction_hi.max(d));
+        }
+        let Some(span) = NodePacket::spanning(origin_lo, origin_hi, direction_lo, direction_hi)
+        else {
+            return false;
+        };
+        !self
+            .meshes
+            .iter()
+            .any(|placed| placed.mesh.span_may_meet(&span, rays.t_max))
     }
 
     /// The nearest hits of rays `first..first + out.len()` (at most

@@ -393,6 +393,23 @@ pub fn any_stream<T: AnyTest, const K: usize>(
     unsafe { run(proof, nodes, rays, count, t_max, stacks, tests) }
 }
 
+/// `packet::span_reaches_leaf` compiled for AVX2.
+#[inline]
+pub fn span_reaches_leaf(
+    proof: Avx2,
+    nodes: &[WideNode],
+    span: &NodePacket,
+    limit: f32,
+    budget: usize,
+) -> bool {
+    #[target_feature(enable = "avx2")]
+    fn run(proof: Avx2, nodes: &[WideNode], span: &NodePacket, limit: f32, budget: usize) -> bool {
+        packet::span_reaches_leaf(proof, nodes, span, limit, budget)
+    }
+    // SAFETY: `proof` exists only where `detect` found AVX2.
+    unsafe { run(proof, nodes, span, limit, budget) }
+}
+
 /// `packet::closest` compiled for AVX2.
 #[inline]
 pub fn closest_packet(

@@ -224,6 +224,24 @@ impl Kernel {
         }
     }
 
+    /// Whether the rays of a span may reach a leaf (see
+    /// `packet::span_reaches_leaf`) on this kernel.
+    #[inline]
+    pub(crate) fn span_reaches_leaf(
+        self,
+        nodes: &[WideNode],
+        span: &NodePacket,
+        limit: f32,
+        budget: usize,
+    ) -> bool {
+        match self {
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2(k) => avx2::span_reaches_leaf(k, nodes, span, limit, budget),
+            Kernel::Sse2 => packet::span_reaches_leaf(Sse2, nodes, span, limit, budget),
+            Kernel::Scalar => packet::span_reaches_leaf(Scalar, nodes, span, limit, budget),
+        }
+    }
+
     /// Any-hit traversal of a packet (see `packet::any`): the blocked rays.
     #[inline]
     pub(crate) fn any_packet(
@@ -410,6 +428,57 @@ impl NodePacket {
             origin,
             inv_dir,
             present: (1 << rays.len()) - 1,
+        })
+    }
+
+    /// A packet for the node test alone (`packet_entries`) that stands for
+    /// every ray whose origin lies in `origin_lo..=origin_hi` and direction
+    /// in `direction_lo..=direction_hi`, axis by axis (any number of
+    /// rays). Each such ray's f32 origin and inverse direction, as
+    /// [`NodeRay::new`] makes them, lie in its intervals: `as f32` is
+    /// monotone, and so is 1/d rounded to f32 on each side of zero while
+    /// |d| stays within [10⁻³⁰, 10³⁰] (no ±∞ replaced, no zero). `None`
+    /// where a direction component changes sign or leaves that range, or
+    /// an origin is beyond 10³⁰. Its lanes hold no rays (`present` is 0):
+    /// it is not for `ray_mask`, `ray` or a traversal.
+    pub fn spanning(
+        origin_lo: DVec3,
+        origin_hi: DVec3,
+        direction_lo: DVec3,
+        direction_hi: DVec3,
+    ) -> Option<Self> {
+        let mut origin_bounds = ([0.0f32; 3], [0.0f32; 3]);
+        let mut inv_bounds = ([0.0f32; 3], [0.0f32; 3]);
+        let mut near_row = [0; 3];
+        for axis in 0..3 {
+            let (lo, hi) = (direction_lo[axis], direction_hi[axis]);
+            let magnitudes = 1e-30..=1e30;
+            let one_sign = (lo > 0.0 || hi < 0.0) && lo <= hi;
+            if !(one_sign
+                && magnitudes.contains(&lo.abs())
+                && magnitudes.contains(&hi.abs())
+                && origin_lo[axis].abs() < 1e30
+                && origin_hi[axis].abs() < 1e30)
+            {
+                return None;
+            }
+            // 1/d falls as d grows on either side of zero.
+            inv_bounds.0[axis] = inverse(hi);
+            inv_bounds.1[axis] = inverse(lo);
+            origin_bounds.0[axis] = origin_lo[axis] as f32;
+            origin_bounds.1[axis] = origin_hi[axis] as f32;
+            near_row[axis] = self::near_row(inv_bounds.0[axis], axis);
+        }
+        Some(NodePacket {
+            origin_lo: origin_bounds.0,
+            origin_hi: origin_bounds.1,
+            inv_lo: inv_bounds.0,
+            inv_hi: inv_bounds.1,
+            near_row,
+            far_row: [0, 1, 2].map(|a| (near_row[a] + 3) % 6),
+            origin: [[0.0; PACKET]; 3],
+            inv_dir: [[0.0; PACKET]; 3],
+            present: 0,
         })
     }
 
