@@ -360,17 +360,19 @@ fn every_query_equals_brute_force() {
     }
 }
 
-/// A pinhole camera's rows (in runs of 64 rays, as `RayScene` tests runs
-/// of rays against the meshes' roots at once) over untransformed meshes,
-/// most runs beside them: every query still equals brute force, and
-/// the test checks that many runs are ones a span rules out.
+/// A pinhole camera's rows over untransformed meshes, most of them
+/// beside the meshes (`RayScene` tests runs of rays against the meshes'
+/// trees at once, as spans): every query still equals brute force, and
+/// the test checks that many runs of 64 are ones a span rules out (and so
+/// are the shorter runs the queries test within them: a part of a span
+/// lets through no more).
 #[test]
 fn camera_rows_beside_the_meshes_equal_brute_force() {
     let mut rng = Rng(12);
     let soup = random_soup(&mut rng, 200);
     let ball = icosphere(2, 0.1, &mut rng);
-    // Four runs a row; no run holds directions of both signs on an axis
-    // (those are not tested by spans).
+    // Four runs of 64 a row; no run holds directions of both signs on an
+    // axis (those are not tested by spans).
     let (width, height, run) = (256, 48, 64);
     let eye = DVec3::new(0.3, -7.0, 0.2);
     let (mut o, mut d) = (Vec::new(), Vec::new());

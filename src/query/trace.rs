@@ -29,7 +29,7 @@ const CHUNK: usize = 1024;
 /// beside a mesh, a camera's rows hold long runs of rays that meet
 /// nothing, which then cost a few node tests between them rather than a
 /// packet's set-up and search each eight.
-const SPAN: usize = 64;
+const SPAN: usize = 32;
 
 /// Scenes of more meshes than this are not tested by spans (a search per
 /// mesh per span).
@@ -107,14 +107,13 @@ impl RayScene {
                         return Err(QueryError::Cancelled);
                     }
                     rays.check_chunk(c * CHUNK, t.len())?;
-                    for block in (0..t.len()).step_by(SPAN) {
-                        let end = (block + SPAN).min(t.len());
-                        if self.span_misses(rays, c * CHUNK + block, end - block) {
+                    self.runs(rays, c * CHUNK, t.len(), |block, end, may_hit| {
+                        if !may_hit {
                             // u, v and the normal stay zero.
                             t[block..end].fill(f64::INFINITY);
                             mesh_id[block..end].fill(-1);
                             triangle_id[block..end].fill(-1);
-                            continue;
+                            return;
                         }
                         for first in (block..end).step_by(PACKET) {
                             let count = PACKET.min(end - first);
@@ -139,7 +138,7 @@ impl RayScene {
                                 normal[3 * i..3 * i + 3].copy_from_slice(&world.to_array());
                             }
                         }
-                    }
+                    });
                     Ok(())
                 })
         })?;
@@ -160,17 +159,13 @@ impl RayScene {
                     }
                     rays.check_chunk(c * CHUNK, out.len())?;
                     let mut alone = ByAxes::new();
-                    for block in (0..out.len()).step_by(SPAN) {
-                        let end = (block + SPAN).min(out.len());
-                        // Rays that meet nothing stay unblocked.
-                        if self.span_misses(rays, c * CHUNK + block, end - block) {
-                            continue;
-                        }
-                        for first in (block..end).step_by(PACKET) {
+                    // Rays that meet nothing stay unblocked.
+                    self.runs(rays, c * CHUNK, out.len(), |block, end, may_hit| {
+                        for first in (block..end).step_by(PACKET).filter(|_| may_hit) {
                             let group = &mut out[first..(first + PACKET).min(end)];
                             self.blocked_group(rays, c * CHUNK, first, group, scale, &mut alone);
                         }
-                    }
+                    });
                     // The rays left to trace alone, a permutation at a
                     // time (see `ByAxes`).
                     if let Some(placed) = self.meshes.first() {
@@ -204,17 +199,13 @@ impl RayScene {
                     }
                     rays.check_chunk(c * CHUNK, out.len())?;
                     let mut alone = ByAxes::new();
-                    for block in (0..out.len()).step_by(SPAN) {
-                        let end = (block + SPAN).min(out.len());
-                        // Rays that meet nothing keep a count of 0.
-                        if self.span_misses(rays, c * CHUNK + block, end - block) {
-                            continue;
-                        }
-                        for first in (block..end).step_by(STREAM) {
+                    // Rays that meet nothing keep a count of 0.
+                    self.runs(rays, c * CHUNK, out.len(), |block, end, may_hit| {
+                        for first in (block..end).step_by(STREAM).filter(|_| may_hit) {
                             let group = &mut out[first..(first + STREAM).min(end)];
                             self.count_group(rays, c * CHUNK, first, group, scale, &mut alone);
                         }
-                    }
+                    });
                     // As in `occluded`.
                     if let Some(placed) = self.meshes.first() {
                         alone.each(|k| {
@@ -286,6 +277,27 @@ impl RayScene {
             }
         }
         Ok(out)
+    }
+
+    /// Calls `each(start, end, may_hit)` for the runs of [`SPAN`] rays
+    /// (counted from `chunk`) that cover rays `chunk..chunk + len`, in
+    /// order: `may_hit` is false where [`span_misses`](Self::span_misses)
+    /// rules the run out.
+    fn runs(
+        &self,
+        rays: &Rays,
+        chunk: usize,
+        len: usize,
+        mut each: impl FnMut(usize, usize, bool),
+    ) {
+        for start in (0..len).step_by(SPAN) {
+            let end = (start + SPAN).min(len);
+            each(
+                start,
+                end,
+                !self.span_misses(rays, chunk + start, end - start),
+            );
+        }
     }
 
     /// Whether rays `first..first + n` certainly hit nothing: the range
