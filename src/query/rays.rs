@@ -154,6 +154,41 @@ impl<'a> Rays<'a> {
         self.origins.is_empty()
     }
 
+    /// The least and greatest coordinates, axis by axis, of the origins
+    /// and of the directions of rays `first..first + n` (n ≥ 1): origin
+    /// minima, origin maxima, direction minima, direction maxima. `None`
+    /// when one of the first four rays' directions has other signs than
+    /// the first's, the common case of incoherent rays, told cheaply.
+    pub(crate) fn span(&self, first: usize, n: usize) -> Option<[DVec3; 4]> {
+        let rows = |v: &'a [f64]| v[3 * first..3 * (first + n)].chunks_exact(3);
+        let signs = |d: &[f64]| (d[0] > 0.0, d[1] > 0.0, d[2] > 0.0);
+        let mut directions = rows(self.directions);
+        let d0 = directions.next()?;
+        if directions.clone().take(3).any(|d| signs(d) != signs(d0)) {
+            return None;
+        }
+        // Selects rather than f64::min and max (no NaN here): one vector
+        // instruction each.
+        let mut bounds = [[0.0; 3]; 4];
+        for (rows, lo, hi) in [(rows(self.origins), 0, 1), (rows(self.directions), 2, 3)] {
+            let mut rows = rows;
+            let first_row = rows.next()?;
+            let (mut min, mut max) = (
+                [first_row[0], first_row[1], first_row[2]],
+                [first_row[0], first_row[1], first_row[2]],
+            );
+            for row in rows {
+                for axis in 0..3 {
+                    let v = row[axis];
+                    min[axis] = if v < min[axis] { v } else { min[axis] };
+                    max[axis] = if v > max[axis] { v } else { max[axis] };
+                }
+            }
+            (bounds[lo], bounds[hi]) = (min, max);
+        }
+        Some(bounds.map(DVec3::from_array))
+    }
+
     /// Ray `k` as (origin, direction).
     #[inline]
     pub fn ray(&self, k: usize) -> (DVec3, DVec3) {

@@ -313,17 +313,11 @@ impl RayScene {
         if self.meshes.len() > SPAN_MESHES || self.meshes.iter().any(|m| m.transform.is_some()) {
             return false;
         }
-        let (o, d) = rays.ray(first);
-        let signs = d.cmpgt(DVec3::ZERO).bitmask();
-        let (mut origin_lo, mut origin_hi, mut direction_lo, mut direction_hi) = (o, o, d, d);
-        for k in first + 1..first + n {
-            let (o, d) = rays.ray(k);
-            if d.cmpgt(DVec3::ZERO).bitmask() != signs {
-                return false;
-            }
-            (origin_lo, origin_hi) = (origin_lo.min(o), origin_hi.max(o));
-            (direction_lo, direction_hi) = (direction_lo.min(d), direction_hi.max(d));
-        }
+        let Some([origin_lo, origin_hi, direction_lo, direction_hi]) = rays.span(first, n) else {
+            return false;
+        };
+        // Directions of unlike signs on an axis (past the first four rays)
+        // are refused here.
         let Some(span) = NodePacket::spanning(origin_lo, origin_hi, direction_lo, direction_hi)
         else {
             return false;
