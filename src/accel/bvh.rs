@@ -793,6 +793,48 @@ mod tests {
         assert!(through > 10_000, "{through}");
     }
 
+    /// Every kernel's `masked_max` is the scalar one for every mask, up to
+    /// the sign of a zero (values include ±0, ±∞ and ties).
+    #[test]
+    fn masked_maxima_agree_on_every_kernel() {
+        use crate::accel::simd::{Lanes, PACKET, Scalar};
+        let mut rng = PixelRng::new(31, 0, 0);
+        let pool = [
+            0.0,
+            -0.0,
+            1.0,
+            2.5,
+            -3.0,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            7.0,
+        ];
+        for case in 0..2_000 {
+            let values: [f32; PACKET] = std::array::from_fn(|_| {
+                if case % 2 == 0 {
+                    pool[(rng.uniform() * 8.0) as usize % 8]
+                } else {
+                    (rng.uniform() as f32 - 0.5) * 100.0
+                }
+            });
+            for mask in 0..256u32 {
+                let reference = Scalar.masked_max(&values, mask);
+                for kernel in kernels() {
+                    let got = match kernel {
+                        #[cfg(target_arch = "x86_64")]
+                        Kernel::Avx2(k) => k.masked_max(&values, mask),
+                        Kernel::Sse2 => simd::Sse2.masked_max(&values, mask),
+                        Kernel::Scalar => Scalar.masked_max(&values, mask),
+                    };
+                    assert!(
+                        got == reference,
+                        "{values:?} {mask:#x}: {got} against {reference}"
+                    );
+                }
+            }
+        }
+    }
+
     /// A span (`NodePacket::spanning`) of up to 64 rays lets through every
     /// box one of its rays' own tests does, on every kernel; where its
     /// search from the root finds no leaf, no ray's own traversal tests

@@ -46,19 +46,6 @@ pub trait PacketAnyTest {
     fn test(&mut self, rays: u32, position: usize) -> u32;
 }
 
-/// The largest of the present rays' limits: what the packet's node test
-/// culls by.
-#[inline(always)]
-fn packet_limit(limits: &[f32; PACKET], rays: u32) -> f32 {
-    let mut limit = f32::NEG_INFINITY;
-    for (k, &l) in limits.iter().enumerate() {
-        if rays & (1 << k) != 0 && l > limit {
-            limit = l;
-        }
-    }
-    limit
-}
-
 /// Up to how many rays a node is tested ray by ray rather than by the
 /// packet's test.
 const ALONE_UP_TO: u32 = 2;
@@ -101,7 +88,8 @@ fn children<L: Lanes>(
         }
         return (mask, near, child_rays);
     }
-    let (mut mask, near) = lanes.packet_entries(node, packet, packet_limit(limits, rays));
+    // The packet's node test culls by the largest of its rays' limits.
+    let (mut mask, near) = lanes.packet_entries(node, packet, lanes.masked_max(limits, rays));
     let mut child_rays = [0u16; WIDTH];
     let mut scan = mask;
     while scan != 0 {
@@ -181,7 +169,7 @@ pub fn closest<L: Lanes>(
                 return;
             };
             // Only its own rays' limits matter to an entry.
-            if e.entry > packet_limit(&limits, e.rays.into()) {
+            if e.entry > lanes.masked_max(&limits, e.rays.into()) {
                 continue;
             }
             if e.count == 0 {

@@ -73,6 +73,12 @@ impl Lanes for Avx2 {
     }
 
     #[inline(always)]
+    fn masked_max(self, values: &[f32; PACKET], mask: u32) -> f32 {
+        // SAFETY: `self` exists only where `detect` found AVX2.
+        unsafe { masked_max(values, mask) }
+    }
+
+    #[inline(always)]
     fn packet_entries(
         self,
         node: &WideNode,
@@ -106,6 +112,33 @@ impl Lanes for Avx2 {
             _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
             _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(128));
         }
+    }
+}
+
+/// `Lanes::masked_max` without a branch per lane (those mispredicted on
+/// every node visit and stack pop of a packet): absent lanes blended to
+/// −∞, then the maximum by halves.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[inline(always)]
+unsafe fn masked_max(values: &[f32; PACKET], mask: u32) -> f32 {
+    // SAFETY: the caller guarantees AVX2; the load reads the eight f32 of
+    // `values`, the rest are register operations.
+    unsafe {
+        let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+        let present = _mm256_cmpeq_epi32(
+            _mm256_and_si256(_mm256_set1_epi32(mask as i32), lane_bits),
+            lane_bits,
+        );
+        let v = _mm256_blendv_ps(
+            _mm256_set1_ps(f32::NEG_INFINITY),
+            _mm256_loadu_ps(values.as_ptr()),
+            _mm256_castsi256_ps(present),
+        );
+        let four = _mm_max_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps::<1>(v));
+        let two = _mm_max_ps(four, _mm_movehl_ps(four, four));
+        _mm_cvtss_f32(_mm_max_ss(two, _mm_shuffle_ps::<1>(two, two)))
     }
 }
 

@@ -610,6 +610,20 @@ pub(crate) trait Lanes: Copy {
         packet_entries_scalar(node, packet, limit)
     }
 
+    /// The greatest of `values` in the lanes of `mask` (−∞ for none): a
+    /// packet's limit over its present rays. Forms may differ only in the
+    /// sign of a zero, which no comparison of the limit tells apart.
+    #[inline(always)]
+    fn masked_max(self, values: &[f32; PACKET], mask: u32) -> f32 {
+        let mut greatest = f32::NEG_INFINITY;
+        for (k, &v) in values.iter().enumerate() {
+            if mask & (1 << k) != 0 && v > greatest {
+                greatest = v;
+            }
+        }
+        greatest
+    }
+
     /// The rays of `packet` whose own test lets slot `slot` of `node`
     /// through (see [`ray_mask_scalar`], which every form matches).
     #[inline(always)]
