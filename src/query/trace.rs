@@ -161,9 +161,18 @@ impl RayScene {
                     let mut alone = ByAxes::new();
                     // Rays that meet nothing stay unblocked.
                     self.runs(rays, c * CHUNK, out.len(), |block, end, may_hit| {
-                        for first in (block..end).step_by(PACKET).filter(|_| may_hit) {
-                            let group = &mut out[first..(first + PACKET).min(end)];
-                            self.blocked_group(rays, c * CHUNK, first, group, scale, &mut alone);
+                        if may_hit {
+                            for (g, group) in out[block..end].chunks_mut(PACKET).enumerate() {
+                                let first = block + g * PACKET;
+                                self.blocked_group(
+                                    rays,
+                                    c * CHUNK,
+                                    first,
+                                    group,
+                                    scale,
+                                    &mut alone,
+                                );
+                            }
                         }
                     });
                     // The rays left to trace alone, a permutation at a
@@ -201,9 +210,11 @@ impl RayScene {
                     let mut alone = ByAxes::new();
                     // Rays that meet nothing keep a count of 0.
                     self.runs(rays, c * CHUNK, out.len(), |block, end, may_hit| {
-                        for first in (block..end).step_by(STREAM).filter(|_| may_hit) {
-                            let group = &mut out[first..(first + STREAM).min(end)];
-                            self.count_group(rays, c * CHUNK, first, group, scale, &mut alone);
+                        if may_hit {
+                            for (g, group) in out[block..end].chunks_mut(STREAM).enumerate() {
+                                let first = block + g * STREAM;
+                                self.count_group(rays, c * CHUNK, first, group, scale, &mut alone);
+                            }
                         }
                     });
                     // As in `occluded`.
@@ -383,6 +394,9 @@ impl RayScene {
     /// Whether rays `chunk + first..chunk + first + out.len()` are
     /// blocked; rays of a scene of one mesh without a transform to be
     /// traced alone are left in `alone` (by their index in the chunk).
+    // Not inlined into the chunk's loop: inlined there it took 2 % more
+    // instructions on incoherent rays.
+    #[inline(never)]
     fn blocked_group(
         &self,
         rays: &Rays,
