@@ -60,6 +60,18 @@ def write_ply(path, vertices, faces):
         f.write(rec.tobytes())
 
 
+def read_ply(path):
+    """What write_ply writes: float x, y, z; uchar count + 3 ints."""
+    data = open(path, "rb").read()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    header = data[:end].decode().split("\n")
+    nv = int(next(l for l in header if l.startswith("element vertex")).split()[-1])
+    nf = int(next(l for l in header if l.startswith("element face")).split()[-1])
+    v = np.frombuffer(data, dtype="<f4", count=3 * nv, offset=end).reshape(nv, 3)
+    rec = np.frombuffer(data, dtype=[("n", "u1"), ("i", "<i4", 3)], count=nf, offset=end + 12 * nv)
+    return np.ascontiguousarray(v), np.ascontiguousarray(rec["i"])
+
+
 def bunny():
     """The Stanford bunny from the npm package `bunny`, as binary PLY."""
     path = os.path.join(DATA, "bunny.ply")
@@ -97,14 +109,7 @@ def bunny_940k():
     path = os.path.join(DATA, "bunny940k.ply")
     if os.path.exists(path):
         return path
-    data = open(bunny(), "rb").read()
-    end = data.index(b"end_header\n") + len(b"end_header\n")
-    header = data[:end].decode().split("\n")
-    nv = int(next(l for l in header if l.startswith("element vertex")).split()[-1])
-    nf = int(next(l for l in header if l.startswith("element face")).split()[-1])
-    v = np.frombuffer(data, dtype="<f4", count=3 * nv, offset=end).reshape(nv, 3)
-    rec = np.frombuffer(data, dtype=[("n", "u1"), ("i", "<i4", 3)], count=nf, offset=end + 12 * nv)
-    write_ply(path, *subdivided(v, rec["i"], 4))
+    write_ply(path, *subdivided(*read_ply(bunny()), 4))
     return path
 
 

@@ -53,15 +53,9 @@ def install_prism():
 
 
 def read_ply(path):
-    """bench/meshes.py's binary PLY: float x, y, z; uchar count + 3 ints."""
-    data = open(path, "rb").read()
-    end = data.index(b"end_header\n") + len(b"end_header\n")
-    header = data[:end].decode().split("\n")
-    nv = int(next(l for l in header if l.startswith("element vertex")).split()[-1])
-    nf = int(next(l for l in header if l.startswith("element face")).split()[-1])
-    v = np.frombuffer(data, dtype="<f4", count=3 * nv, offset=end).reshape(nv, 3)
-    rec = np.frombuffer(data, dtype=[("n", "u1"), ("i", "<i4", 3)], count=nf, offset=end + 12 * nv)
-    return np.ascontiguousarray(v), np.ascontiguousarray(rec["i"])
+    """bench/meshes.py's binary PLY, as (float32 vertices, int32 faces)."""
+    import meshes as m  # bench/meshes.py, imported when first needed
+    return m.read_ply(path)
 
 
 def meshes():
