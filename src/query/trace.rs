@@ -1,5 +1,8 @@
-//! The ray queries of [`RayScene`]: nearest hit, any hit, every hit. Rays
-//! are taken in groups of eight; a coherent group (nearly parallel rays
+//! The ray queries of [`RayScene`]: nearest hit, any hit, every hit. The
+//! first three take rays in runs of [`SPAN`]: a run whose directions share
+//! their signs is first tested as one span against each mesh's tree, and
+//! answered as misses when it reaches no leaf (a camera's rays beside the
+//! meshes). The rest go in groups of eight; a coherent group (nearly parallel rays
 //! from nearby origins: a camera's, a lidar's) goes through each mesh's
 //! tree as a packet, an incoherent one through a large mesh as a stream
 //! (each ray's next reads prefetched while the others step), otherwise ray
