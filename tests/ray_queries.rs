@@ -8,6 +8,7 @@
 // machines).
 #![allow(clippy::disallowed_methods)]
 
+use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
@@ -17,6 +18,9 @@ use prism::geometry::triangle::{WatertightRay, triangle_hit};
 use prism::geometry::{Mesh, MeshData, MeshInstance};
 use prism::math::{Ray, Transform};
 use prism::query::{QueryError, QueryOptions, RayScene, Rays};
+use prism::scene::LoadOptions;
+use prism::scene::models::load_model;
+use prism::scene::resources::Resources;
 
 /// splitmix64: a seeded stream of uniform numbers.
 struct Rng(u64);
@@ -508,33 +512,24 @@ fn hits_equal_the_renderers_bit_for_bit() {
 }
 
 /// The Stanford bunny (3,674 triangles, closed: every edge on two
-/// triangles), tests/data/bunny.ply, binary PLY as bench/meshes.py writes
-/// it from the npm package `bunny`; each vertex moved by up to `jitter`
-/// along each axis.
+/// triangles), tests/data/bunny.ply read by Prism's own PLY reader; each
+/// vertex moved by up to `jitter` along each axis.
 fn bunny(jitter: f64, rng: &mut Rng) -> Soup {
-    let data = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/bunny.ply")).unwrap();
-    let end = data.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
-    let header = std::str::from_utf8(&data[..end]).unwrap();
-    let count = |element: &str| -> usize {
-        let line = header.lines().find(|l| l.starts_with(element)).unwrap();
-        line.rsplit(' ').next().unwrap().parse().unwrap()
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bunny.ply");
+    let mut res = Resources::new(path.parent().unwrap(), &LoadOptions::default());
+    let model = load_model(&path, &mut res).unwrap_or_else(|e| panic!("{e}"));
+    let [mesh] = &model.meshes[..] else {
+        panic!("one mesh expected in {}", path.display());
     };
-    let (nv, nf) = (count("element vertex"), count("element face"));
-    let f32_at =
-        |i: usize| f32::from_le_bytes(data[end + 4 * i..end + 4 * i + 4].try_into().unwrap());
-    let vertices = (0..3 * nv)
-        .map(|i| f64::from(f32_at(i)) + jitter * rng.range(-1.0, 1.0))
-        .collect();
-    let faces_at = end + 12 * nv;
-    let faces = (0..nf)
-        .flat_map(|k| {
-            let record = &data[faces_at + 13 * k..faces_at + 13 * (k + 1)];
-            assert_eq!(record[0], 3);
-            (0..3)
-                .map(move |j| u32::from_le_bytes(record[1 + 4 * j..5 + 4 * j].try_into().unwrap()))
-        })
-        .collect();
-    Soup { vertices, faces }
+    Soup {
+        vertices: mesh
+            .positions
+            .iter()
+            .flat_map(|p| p.to_array())
+            .map(|x| x + jitter * rng.range(-1.0, 1.0))
+            .collect(),
+        faces: mesh.triangles.iter().flatten().copied().collect(),
+    }
 }
 
 /// pbrt-v4's watertightness test: from random points inside randomly

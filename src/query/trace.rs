@@ -304,13 +304,15 @@ impl RayScene {
         len: usize,
         mut each: impl FnMut(usize, usize, bool),
     ) {
+        // Scenes spans do not apply to, told once per chunk: more meshes
+        // than SPAN_MESHES, or a transformed one (its rays are traced in
+        // the mesh's own space).
+        let spans =
+            self.meshes.len() <= SPAN_MESHES && self.meshes.iter().all(|m| m.transform.is_none());
         for start in (0..len).step_by(SPAN) {
             let end = (start + SPAN).min(len);
-            each(
-                start,
-                end,
-                !self.span_misses(rays, chunk + start, end - start),
-            );
+            let missed = spans && self.span_misses(rays, chunk + start, end - start);
+            each(start, end, !missed);
         }
     }
 
@@ -320,13 +322,9 @@ impl RayScene {
     /// (`Mesh::span_may_meet`: a few node tests from the root), its test
     /// letting through every box one of the rays' own tests would. Only runs
     /// whose directions share their signs are tested (a camera's or a
-    /// lidar's; others are given up at their first ray of other signs),
-    /// and only in scenes of at most [`SPAN_MESHES`] meshes, none
-    /// transformed (whose rays are traced in the mesh's own space).
+    /// lidar's; incoherent ones are told by their first four rays). The
+    /// meshes must be untransformed (see [`runs`](Self::runs)).
     fn span_misses(&self, rays: &Rays, first: usize, n: usize) -> bool {
-        if self.meshes.len() > SPAN_MESHES || self.meshes.iter().any(|m| m.transform.is_some()) {
-            return false;
-        }
         let Some([origin_lo, origin_hi, direction_lo, direction_hi]) = rays.span(first, n) else {
             return false;
         };
