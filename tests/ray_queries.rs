@@ -511,6 +511,106 @@ fn hits_equal_the_renderers_bit_for_bit() {
     }
 }
 
+/// Incoherent rays through a mesh beyond the cache are traced in an order
+/// of the query's own (by direction octant and origin cell) and their
+/// answers put back: every answer is the one the same rays get in batches
+/// too small to be reordered, bit for bit, on any thread count, and the
+/// nearest hits are the renderer's.
+#[test]
+fn rays_traced_in_the_querys_own_order_answer_as_given() {
+    let mut rng = Rng(9);
+    // 262,144 triangles: more than the 8 MB the order is kept for.
+    let big = torus(512, 256, 0.002, &mut rng);
+    let small = icosphere(2, 0.1, &mut rng);
+    let m = DMat4::from_scale_rotation_translation(
+        DVec3::splat(0.3),
+        glam::DQuat::from_rotation_x(0.5),
+        DVec3::new(0.2, 0.1, 0.0),
+    );
+    let mut scene = RayScene::new();
+    scene.add_mesh(&big.vertices, &big.faces, None).unwrap();
+    assert!(scene.memory_bytes() > 12 << 20, "{}", scene.memory_bytes());
+    scene
+        .add_mesh(&small.vertices, &small.faces, Some(m))
+        .unwrap();
+    let n = 40_000;
+    let (mut o, mut d) = (Vec::new(), Vec::new());
+    for _ in 0..n {
+        o.extend(
+            DVec3::new(
+                rng.range(-1.5, 1.5),
+                rng.range(-1.5, 1.5),
+                rng.range(-0.5, 0.5),
+            )
+            .to_array(),
+        );
+        d.extend(rng.direction().to_array());
+    }
+    let whole = Rays::new(&o, &d, 0.0, f64::INFINITY).unwrap();
+    let sorted = (
+        scene.intersect(&whole, &options(1)).unwrap(),
+        scene.occluded(&whole, &options(1)).unwrap(),
+        scene.count_intersections(&whole, &options(1)).unwrap(),
+    );
+    assert!(
+        sorted
+            == (
+                scene.intersect(&whole, &options(2)).unwrap(),
+                scene.occluded(&whole, &options(2)).unwrap(),
+                scene.count_intersections(&whole, &options(2)).unwrap(),
+            )
+    );
+    // Batches of 5,000 rays are traced as given.
+    let part = 5000;
+    let mut hit = 0;
+    for first in (0..n).step_by(part) {
+        let batch = Rays::new(
+            &o[3 * first..3 * (first + part)],
+            &d[3 * first..3 * (first + part)],
+            0.0,
+            f64::INFINITY,
+        )
+        .unwrap();
+        let hits = scene.intersect(&batch, &options(2)).unwrap();
+        let occluded = scene.occluded(&batch, &options(2)).unwrap();
+        let counts = scene.count_intersections(&batch, &options(2)).unwrap();
+        for k in 0..part {
+            let i = first + k;
+            assert_eq!(hits.t[k].to_bits(), sorted.0.t[i].to_bits(), "ray {i}");
+            assert_eq!(hits.mesh_id[k], sorted.0.mesh_id[i], "ray {i}");
+            assert_eq!(hits.triangle_id[k], sorted.0.triangle_id[i], "ray {i}");
+            assert_eq!(hits.u[k].to_bits(), sorted.0.u[i].to_bits(), "ray {i}");
+            assert_eq!(hits.v[k].to_bits(), sorted.0.v[i].to_bits(), "ray {i}");
+            assert_eq!(
+                hits.normal[3 * k..3 * k + 3],
+                sorted.0.normal[3 * i..3 * i + 3],
+                "ray {i}"
+            );
+            assert_eq!(occluded[k], sorted.1[i], "ray {i}");
+            assert_eq!(counts[k], sorted.2[i], "ray {i}");
+            hit += usize::from(hits.mesh_id[k] >= 0);
+        }
+    }
+    assert!(hit > n / 4 && hit < n, "{hit} of {n} rays hit");
+    assert!(sorted.0.mesh_id.contains(&1), "no ray hit the small mesh");
+    // The nearest hits against the big mesh alone, by the renderer's own
+    // search, ray by ray.
+    let mesh = Mesh::new(big.data()).unwrap();
+    for i in (0..n).step_by(7) {
+        let (origin, direction) = whole.ray(i);
+        if sorted.0.mesh_id[i] == 1 {
+            continue;
+        }
+        match mesh.intersect(origin, direction, 0.0, f64::INFINITY) {
+            None => assert_eq!(sorted.0.triangle_id[i], -1, "ray {i}"),
+            Some(h) => {
+                assert_eq!(sorted.0.t[i].to_bits(), h.t.to_bits(), "ray {i}");
+                assert_eq!(sorted.0.triangle_id[i], i64::from(h.triangle), "ray {i}");
+            }
+        }
+    }
+}
+
 /// The Stanford bunny (3,674 triangles, closed: every edge on two
 /// triangles), tests/data/bunny.ply read by Prism's own PLY reader; each
 /// vertex moved by up to `jitter` along each axis.

@@ -14,6 +14,7 @@ mod wide;
 
 pub use primitive::{Primitive, Shape};
 pub use shadow::{Blocker, FeelerBatch, FirstBlockers, MAX_CANDIDATES, ShadowCandidates};
+pub(crate) use simd::prefetch;
 pub use simd::{NodePacket, NodeRay, PACKET, SimdPath, simd_path};
 
 use bvh::Bvh;

@@ -36,6 +36,7 @@
 //! ```
 
 pub mod contains;
+mod order;
 pub mod rays;
 pub mod scene;
 mod trace;

@@ -144,6 +144,18 @@ impl<'a> Rays<'a> {
         Self::new(self.origins, self.directions, self.t_min, self.t_max).map(|_| ())
     }
 
+    /// Rays gathered from this batch (so checked already), with its
+    /// `t_min` and `t_max`.
+    pub(crate) fn gathered<'b>(&self, origins: &'b [f64], directions: &'b [f64]) -> Rays<'b> {
+        Rays {
+            origins,
+            directions,
+            t_min: self.t_min,
+            t_max: self.t_max,
+            unchecked: false,
+        }
+    }
+
     /// Number of rays.
     pub fn len(&self) -> usize {
         self.origins.len() / 3
