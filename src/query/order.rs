@@ -31,6 +31,10 @@ const BUCKETS: usize = 8 << (3 * CELL_BITS);
 
 /// Fewer rays than this are traced as given: sorting pays through what
 /// later rays find in the cache, which a small batch does not reach.
+/// Measured on the bench's incoherent rays (one thread, batches of 16 Ki
+/// and 64 Ki of them): the 940k-triangle bunny took 0.94–1.06 times as
+/// long sorted, the 1M-triangle terrain 0.85–1.00 times; a batch of 1M,
+/// 0.74–0.92 times.
 const MIN_RAYS: usize = 1 << 14;
 
 /// Pairs of neighbouring rays looked at to tell whether a batch is in an
