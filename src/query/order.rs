@@ -208,6 +208,8 @@ pub(crate) fn chunk_rays<'a: 'b, 'b>(
     } = gathered;
     origins.clear();
     directions.clear();
+    origins.reserve(3 * len);
+    directions.reserve(3 * len);
     for &i in &order[first..first + len] {
         let (origin, direction) = rays.ray(i as usize);
         origins.extend_from_slice(&origin.to_array());

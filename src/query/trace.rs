@@ -171,6 +171,7 @@ impl RayScene {
         options: &QueryOptions,
     ) -> Result<Hits, QueryError> {
         let n = rays.len();
+        let scale = self.bounds().diagonal();
         // Zeros, which the allocator takes from the system as they are
         // (no pass over them here): each worker faults in and writes its
         // own chunks, a miss's t and ids included.
@@ -214,7 +215,7 @@ impl RayScene {
             // read back.
             options.run(|| {
                 chunks.try_for_each(|(c, mut out)| {
-                    self.nearest_chunk(rays, None, c, &mut out, options)
+                    self.nearest_chunk(rays, None, c, &mut out, scale, options)
                 })
             })?;
             return Ok(hits);
@@ -227,7 +228,7 @@ impl RayScene {
                 .into_par_iter()
                 .map(|c| {
                     let mut out = vec![NO_HIT; CHUNK.min(n - c * CHUNK)];
-                    self.nearest_chunk(rays, Some(&order.rays), c, &mut out, options)?;
+                    self.nearest_chunk(rays, Some(&order.rays), c, &mut out, scale, options)?;
                     Ok(out)
                 })
                 .collect::<Result<Vec<_>, QueryError>>()?;
@@ -258,12 +259,12 @@ impl RayScene {
         order: Option<&[u32]>,
         c: usize,
         out: &mut impl AnswerSink,
+        scale: f64,
         options: &QueryOptions,
     ) -> Result<(), QueryError> {
         if options.cancelled() {
             return Err(QueryError::Cancelled);
         }
-        let scale = self.bounds().diagonal();
         let mut gathered = Gathered::default();
         let (rays, base) = chunk_rays(rays, order, c * CHUNK, out.len(), &mut gathered)?;
         let rays = &rays;
