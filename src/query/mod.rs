@@ -39,6 +39,7 @@ pub mod contains;
 mod order;
 pub mod rays;
 pub mod scene;
+mod tiles;
 mod trace;
 
 use thiserror::Error;

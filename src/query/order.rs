@@ -16,6 +16,7 @@ use rayon::prelude::*;
 
 use super::QueryError;
 use super::rays::{QueryOptions, Rays};
+use super::tiles::{COLUMNS, Tiles};
 use crate::geometry::Aabb;
 use crate::math::rng::splitmix64;
 
@@ -44,25 +45,35 @@ const SAMPLES: usize = 256;
 /// Rays per task of the key pass.
 const CHUNK: usize = 1 << 14;
 
-/// The order rays are traced in, and its inverse.
+/// The order a query traces its rays in, where not as given.
 #[derive(Debug)]
-pub(crate) struct TraceOrder {
+pub(crate) enum TraceOrder {
+    /// Sorted by octant and origin cell: scattered rays through a mesh
+    /// beyond the cache.
+    Sorted(Sorted),
+    /// A camera's rows, tile by tile within each chunk (`query::tiles`).
+    Tiled(Tiles),
+}
+
+/// Rays sorted by octant and origin cell, and the inverse order.
+#[derive(Debug)]
+pub(crate) struct Sorted {
     /// Ray `rays[s]` is traced s-th.
     pub rays: Vec<u32>,
     /// Ray i is traced `slot[i]`-th.
     pub slot: Vec<u32>,
 }
 
-/// The order to trace `rays` in through a scene of bounds `scene`, or
-/// `None` to trace them as given (few rays, or rays whose neighbours start
-/// near each other and head the same way). Checks the rays' coordinates
+/// The sorted order to trace `rays` in through a scene of bounds `scene`,
+/// or `None` to leave them as they are (few rays, or rays whose neighbours
+/// start near each other and head the same way). Checks the rays' coordinates
 /// when they are still to be checked ([`Rays::deferred`]), with the error
 /// [`Rays::new`] gives.
-pub(crate) fn trace_order(
+pub(crate) fn sorted_order(
     rays: &Rays,
     scene: Aabb,
     options: &QueryOptions,
-) -> Result<Option<TraceOrder>, QueryError> {
+) -> Result<Option<Sorted>, QueryError> {
     let n = rays.len();
     if n < MIN_RAYS || n > u32::MAX as usize || in_order(rays, scene) {
         return Ok(None);
@@ -155,7 +166,7 @@ fn spread(cell: u16) -> u16 {
 }
 
 /// The order of the keys' rays by key, rays of one key in their own order.
-fn counting_sort(keys: &[u16]) -> TraceOrder {
+fn counting_sort(keys: &[u16]) -> Sorted {
     let mut next = vec![0u32; BUCKETS];
     for &key in keys {
         next[usize::from(key)] += 1;
@@ -164,7 +175,7 @@ fn counting_sort(keys: &[u16]) -> TraceOrder {
     for count in &mut next {
         (*count, start) = (start, start + *count);
     }
-    let mut order = TraceOrder {
+    let mut order = Sorted {
         rays: vec![0; keys.len()],
         slot: vec![0; keys.len()],
     };
@@ -185,23 +196,23 @@ pub(crate) struct Gathered {
 }
 
 /// The rays a query's chunk traces, and the number of the first of them:
-/// rays `first..first + len` of the batch (checked here where the batch
-/// is still to be checked), or, in a trace order, the rays in its slots
-/// `first..first + len`, gathered into `gathered` (the key pass checked
-/// them) and numbered from 0. Gathered a chunk at a time, the rays stay in
-/// the cache while they are traced, and no copy of the whole batch is
-/// made.
+/// rays `first..first + len` of the batch as given (checked here where
+/// the batch is still to be checked); or gathered into `gathered` and
+/// numbered from 0: in a sorted order, the rays in its slots
+/// `first..first + len` (the key pass checked them), in tiles, the
+/// chunk's rays tile by tile (checked here). Gathered a chunk at a time,
+/// the rays stay in the cache while they are traced, and no copy of the
+/// whole batch is made.
 pub(crate) fn chunk_rays<'a: 'b, 'b>(
     rays: &Rays<'a>,
-    order: Option<&[u32]>,
+    order: Option<&TraceOrder>,
     first: usize,
     len: usize,
     gathered: &'b mut Gathered,
 ) -> Result<(Rays<'b>, usize), QueryError> {
-    let Some(order) = order else {
+    if !matches!(order, Some(TraceOrder::Sorted(_))) {
         rays.check_chunk(first, len)?;
-        return Ok((*rays, first));
-    };
+    }
     let Gathered {
         origins,
         directions,
@@ -210,10 +221,27 @@ pub(crate) fn chunk_rays<'a: 'b, 'b>(
     directions.clear();
     origins.reserve(3 * len);
     directions.reserve(3 * len);
-    for &i in &order[first..first + len] {
-        let (origin, direction) = rays.ray(i as usize);
-        origins.extend_from_slice(&origin.to_array());
-        directions.extend_from_slice(&direction.to_array());
+    let mut gather = |first: usize, count: usize| {
+        let (o, d) = rays.coordinates(first, count);
+        // A tile's row as one copy of known size (a few vector moves
+        // rather than a call).
+        if let (Ok(o), Ok(d)) = (<&[f64; 3 * COLUMNS]>::try_from(o), d.try_into()) {
+            let d: &[f64; 3 * COLUMNS] = d;
+            origins.extend_from_slice(o);
+            directions.extend_from_slice(d);
+        } else {
+            origins.extend_from_slice(o);
+            directions.extend_from_slice(d);
+        }
+    };
+    match order {
+        None => return Ok((*rays, first)),
+        Some(TraceOrder::Sorted(sorted)) => sorted.rays[first..first + len]
+            .iter()
+            .for_each(|&i| gather(i as usize, 1)),
+        Some(TraceOrder::Tiled(tiles)) => tiles
+            .chunk(len)
+            .runs(0..len, |i, count| gather(first + i, count)),
     }
     Ok((rays.gathered(origins, directions), 0))
 }
@@ -305,7 +333,7 @@ mod tests {
         let camera = Rays::new(&origins, &directions, 0.0, f64::INFINITY).unwrap();
         let options = QueryOptions::default();
         assert!(
-            trace_order(&camera, unit_box(), &options)
+            sorted_order(&camera, unit_box(), &options)
                 .unwrap()
                 .is_none()
         );
@@ -313,7 +341,9 @@ mod tests {
         let scattered: Vec<f64> = (0..3 * n).map(|_| rng.uniform()).collect();
         let ways: Vec<f64> = (0..3 * n).map(|_| rng.uniform() - 0.5).collect();
         let random = Rays::new(&scattered, &ways, 0.0, f64::INFINITY).unwrap();
-        let order = trace_order(&random, unit_box(), &options).unwrap().unwrap();
+        let order = sorted_order(&random, unit_box(), &options)
+            .unwrap()
+            .unwrap();
         let grid = Grid::new(unit_box());
         let key = |i: u32| {
             let (o, d) = random.ray(i as usize);
@@ -322,7 +352,7 @@ mod tests {
         assert!(order.rays.windows(2).all(|w| key(w[0]) <= key(w[1])));
         // Too few rays: as given.
         let few = Rays::new(&scattered[..300], &ways[..300], 0.0, f64::INFINITY).unwrap();
-        assert!(trace_order(&few, unit_box(), &options).unwrap().is_none());
+        assert!(sorted_order(&few, unit_box(), &options).unwrap().is_none());
     }
 
     #[test]
@@ -333,7 +363,7 @@ mod tests {
         let directions: Vec<f64> = (0..3 * n).map(|_| rng.uniform() - 0.5).collect();
         origins[3 * 20_000 + 1] = f64::NAN;
         let deferred = Rays::deferred(&origins, &directions, 0.0, f64::INFINITY).unwrap();
-        let err = trace_order(&deferred, unit_box(), &QueryOptions::default()).unwrap_err();
+        let err = sorted_order(&deferred, unit_box(), &QueryOptions::default()).unwrap_err();
         let eager = Rays::new(&origins, &directions, 0.0, f64::INFINITY).unwrap_err();
         assert_eq!(err.to_string(), eager.to_string());
     }

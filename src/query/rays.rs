@@ -201,6 +201,14 @@ impl<'a> Rays<'a> {
         Some(bounds.map(DVec3::from_array))
     }
 
+    /// The coordinates of rays `first..first + count`: origins,
+    /// directions.
+    #[inline(always)]
+    pub(crate) fn coordinates(&self, first: usize, count: usize) -> (&'a [f64], &'a [f64]) {
+        let rows = 3 * first..3 * (first + count);
+        (&self.origins[rows.clone()], &self.directions[rows])
+    }
+
     /// Ray `k` as (origin, direction).
     #[inline]
     pub fn ray(&self, k: usize) -> (DVec3, DVec3) {

@@ -16,9 +16,10 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::QueryError;
-use super::order::{Gathered, TraceOrder, chunk_rays, trace_order, unsort};
+use super::order::{Gathered, TraceOrder, chunk_rays, sorted_order, unsort};
 use super::rays::{Crossings, Hits, QueryOptions, Rays};
 use super::scene::{Placed, RayScene};
+use super::tiles::{TiledChunk, Tiles};
 use crate::accel::{NodePacket, PACKET, prefetch};
 use crate::geometry::Aabb;
 use crate::geometry::cuboid::slab_interval;
@@ -172,6 +173,7 @@ impl RayScene {
     ) -> Result<Hits, QueryError> {
         let n = rays.len();
         let scale = self.bounds().diagonal();
+        let chunk = chunk_len(order);
         // Zeros, which the allocator takes from the system as they are
         // (no pass over them here): each worker faults in and writes its
         // own chunks, a miss's t and ids included.
@@ -192,12 +194,12 @@ impl RayScene {
             normal,
         } = &mut hits;
         let chunks = t
-            .par_chunks_mut(CHUNK)
-            .zip(mesh_id.par_chunks_mut(CHUNK))
-            .zip(triangle_id.par_chunks_mut(CHUNK))
-            .zip(u.par_chunks_mut(CHUNK))
-            .zip(v.par_chunks_mut(CHUNK))
-            .zip(normal.par_chunks_mut(3 * CHUNK))
+            .par_chunks_mut(chunk)
+            .zip(mesh_id.par_chunks_mut(chunk))
+            .zip(triangle_id.par_chunks_mut(chunk))
+            .zip(u.par_chunks_mut(chunk))
+            .zip(v.par_chunks_mut(chunk))
+            .zip(normal.par_chunks_mut(3 * chunk))
             .map(
                 |(((((t, mesh_id), triangle_id), u), v), normal)| HitsChunk {
                     t,
@@ -209,16 +211,26 @@ impl RayScene {
                 },
             )
             .enumerate();
-        let Some(order) = order else {
-            // Written in place, chunk by chunk: a vector of whole hits
-            // would be three times the answer's size to fault in and
-            // read back.
-            options.run(|| {
-                chunks.try_for_each(|(c, mut out)| {
-                    self.nearest_chunk(rays, None, c, &mut out, scale, options)
-                })
-            })?;
-            return Ok(hits);
+        // Written in place, chunk by chunk (a vector of whole hits would
+        // be three times the answer's size to fault in and read back),
+        // tiles' answers each to its ray's place.
+        let slot = match order {
+            Some(TraceOrder::Sorted(sorted)) => &sorted.slot,
+            _ => {
+                options.run(|| {
+                    chunks.try_for_each(|(c, mut out)| {
+                        let first = c * chunk;
+                        match order {
+                            Some(TraceOrder::Tiled(tiles)) => {
+                                let mut out = InTiles::new(out, tiles);
+                                self.nearest_chunk(rays, order, first, &mut out, scale, options)
+                            }
+                            _ => self.nearest_chunk(rays, order, first, &mut out, scale, options),
+                        }
+                    })
+                })?;
+                return Ok(hits);
+            }
         };
         options.run(|| {
             // Each chunk's answers in one vector of whole answers (on the
@@ -228,12 +240,12 @@ impl RayScene {
                 .into_par_iter()
                 .map(|c| {
                     let mut out = vec![NO_HIT; CHUNK.min(n - c * CHUNK)];
-                    self.nearest_chunk(rays, Some(&order.rays), c, &mut out, scale, options)?;
+                    self.nearest_chunk(rays, order, c * CHUNK, &mut out, scale, options)?;
                     Ok(out)
                 })
                 .collect::<Result<Vec<_>, QueryError>>()?;
             chunks
-                .zip(order.slot.par_chunks(CHUNK))
+                .zip(slot.par_chunks(CHUNK))
                 .for_each(|((_, mut out), slots)| {
                     for (i, &s) in slots.iter().enumerate() {
                         // The answers' random reads, asked for ahead.
@@ -250,14 +262,14 @@ impl RayScene {
         Ok(hits)
     }
 
-    /// The nearest hits of the rays of chunk `c`: rays `c * CHUNK..` as
-    /// given, or those traced in slots `c * CHUNK..` of `order`, into
-    /// `out` (entry k for the chunk's k-th).
+    /// The nearest hits of the chunk of `out.len()` rays from `first` as
+    /// `order` has them (see `chunk_rays`), into `out` (entry k for the
+    /// chunk's k-th traced).
     fn nearest_chunk(
         &self,
         rays: &Rays,
-        order: Option<&[u32]>,
-        c: usize,
+        order: Option<&TraceOrder>,
+        first: usize,
         out: &mut impl AnswerSink,
         scale: f64,
         options: &QueryOptions,
@@ -266,7 +278,7 @@ impl RayScene {
             return Err(QueryError::Cancelled);
         }
         let mut gathered = Gathered::default();
-        let (rays, base) = chunk_rays(rays, order, c * CHUNK, out.len(), &mut gathered)?;
+        let (rays, base) = chunk_rays(rays, order, first, out.len(), &mut gathered)?;
         let rays = &rays;
         self.runs(rays, base, out.len(), |block, end, may_hit| {
             if !may_hit {
@@ -315,43 +327,27 @@ impl RayScene {
         order: Option<&TraceOrder>,
         options: &QueryOptions,
     ) -> Result<Vec<bool>, QueryError> {
-        let mut blocked = vec![false; rays.len()];
         let scale = self.bounds().diagonal();
-        let slots = order.map(|o| &o.rays[..]);
-        options.run(|| {
-            blocked
-                .par_chunks_mut(CHUNK)
-                .enumerate()
-                .try_for_each(|(c, out)| {
-                    if options.cancelled() {
-                        return Err(QueryError::Cancelled);
+        self.each_chunk(rays, order, options, |rays, base, out: &mut [bool]| {
+            let mut alone = ByAxes::new();
+            // Rays that meet nothing stay unblocked.
+            self.runs(rays, base, out.len(), |block, end, may_hit| {
+                if may_hit {
+                    for (g, group) in out[block..end].chunks_mut(PACKET).enumerate() {
+                        let first = block + g * PACKET;
+                        self.blocked_group(rays, base, first, group, scale, &mut alone);
                     }
-                    let mut gathered = Gathered::default();
-                    let (rays, base) =
-                        chunk_rays(rays, slots, c * CHUNK, out.len(), &mut gathered)?;
-                    let rays = &rays;
-                    let mut alone = ByAxes::new();
-                    // Rays that meet nothing stay unblocked.
-                    self.runs(rays, base, out.len(), |block, end, may_hit| {
-                        if may_hit {
-                            for (g, group) in out[block..end].chunks_mut(PACKET).enumerate() {
-                                let first = block + g * PACKET;
-                                self.blocked_group(rays, base, first, group, scale, &mut alone);
-                            }
-                        }
-                    });
-                    // The rays left to trace alone, a permutation at a
-                    // time (see `ByAxes`).
-                    if let Some(placed) = self.meshes.first() {
-                        alone.each(|k| {
-                            let (o, d) = rays.ray(base + k);
-                            out[k] = placed.mesh.any_hit(o, d, rays.t_min, rays.t_max);
-                        });
-                    }
-                    Ok(())
-                })
-        })?;
-        in_rays_order(blocked, order, options)
+                }
+            });
+            // The rays left to trace alone, a permutation at a time (see
+            // `ByAxes`).
+            if let Some(placed) = self.meshes.first() {
+                alone.each(|k| {
+                    let (o, d) = rays.ray(base + k);
+                    out[k] = placed.mesh.any_hit(o, d, rays.t_min, rays.t_max);
+                });
+            }
+        })
     }
 
     /// How many triangles each ray hits with t in (t_min, t_max) (a ray
@@ -373,63 +369,107 @@ impl RayScene {
         order: Option<&TraceOrder>,
         options: &QueryOptions,
     ) -> Result<Vec<u32>, QueryError> {
-        let mut counts = vec![0u32; rays.len()];
         let scale = self.bounds().diagonal();
-        let slots = order.map(|o| &o.rays[..]);
+        self.each_chunk(rays, order, options, |rays, base, out: &mut [u32]| {
+            let mut alone = ByAxes::new();
+            // Rays that meet nothing keep a count of 0.
+            self.runs(rays, base, out.len(), |block, end, may_hit| {
+                if may_hit {
+                    for (g, group) in out[block..end].chunks_mut(STREAM).enumerate() {
+                        let first = block + g * STREAM;
+                        self.count_group(rays, base, first, group, scale, &mut alone);
+                    }
+                }
+            });
+            // As in `occluded`.
+            if let Some(placed) = self.meshes.first() {
+                alone.each(|k| {
+                    let (o, d) = rays.ray(base + k);
+                    out[k] = placed.mesh.count_hits(o, d, rays.t_min, rays.t_max);
+                });
+            }
+        })
+    }
+
+    /// One answer per ray, each piece of at most [`CHUNK`] rays answered
+    /// by `trace(rays, base, out)` (the piece's rays from `base` of
+    /// `rays`, its answers into `out`), a chunk of rays on a worker at a
+    /// time as `order` has them (see `chunk_rays`); the answers in the
+    /// rays' order.
+    fn each_chunk<T: Copy + Default + Send + Sync>(
+        &self,
+        rays: &Rays,
+        order: Option<&TraceOrder>,
+        options: &QueryOptions,
+        trace: impl Fn(&Rays, usize, &mut [T]) + Sync,
+    ) -> Result<Vec<T>, QueryError> {
+        let mut answers = vec![T::default(); rays.len()];
+        let chunk = chunk_len(order);
         options.run(|| {
-            counts
-                .par_chunks_mut(CHUNK)
+            answers
+                .par_chunks_mut(chunk)
                 .enumerate()
                 .try_for_each(|(c, out)| {
                     if options.cancelled() {
                         return Err(QueryError::Cancelled);
                     }
+                    let len = out.len();
                     let mut gathered = Gathered::default();
-                    let (rays, base) =
-                        chunk_rays(rays, slots, c * CHUNK, out.len(), &mut gathered)?;
-                    let rays = &rays;
-                    let mut alone = ByAxes::new();
-                    // Rays that meet nothing keep a count of 0.
-                    self.runs(rays, base, out.len(), |block, end, may_hit| {
-                        if may_hit {
-                            for (g, group) in out[block..end].chunks_mut(STREAM).enumerate() {
-                                let first = block + g * STREAM;
-                                self.count_group(rays, base, first, group, scale, &mut alone);
-                            }
+                    let (rays, base) = chunk_rays(rays, order, c * chunk, len, &mut gathered)?;
+                    // Tiles' answers wait in their order, then go each to
+                    // its ray's place.
+                    let tiles = match order {
+                        Some(TraceOrder::Tiled(tiles)) => Some(tiles),
+                        _ => None,
+                    };
+                    let mut in_tiles = Vec::new();
+                    let traced = match tiles {
+                        Some(_) => {
+                            in_tiles.resize(len, T::default());
+                            &mut in_tiles[..]
                         }
-                    });
-                    // As in `occluded`.
-                    if let Some(placed) = self.meshes.first() {
-                        alone.each(|k| {
-                            let (o, d) = rays.ray(base + k);
-                            out[k] = placed.mesh.count_hits(o, d, rays.t_min, rays.t_max);
+                        None => &mut *out,
+                    };
+                    for (p, piece) in traced.chunks_mut(CHUNK).enumerate() {
+                        trace(&rays, base + p * CHUNK, piece);
+                    }
+                    if let Some(tiles) = tiles {
+                        let mut p = 0;
+                        tiles.chunk(len).runs(0..len, |first, count| {
+                            out[first..first + count].copy_from_slice(&in_tiles[p..p + count]);
+                            p += count;
                         });
                     }
                     Ok(())
                 })
         })?;
-        in_rays_order(counts, order, options)
+        match order {
+            Some(TraceOrder::Sorted(sorted)) => options.run(|| Ok(unsort(&answers, &sorted.slot))),
+            _ => Ok(answers),
+        }
     }
 
-    /// The order to trace `rays` in (see `query::order`), or `None` for
-    /// as given. Only through a scene with a mesh beyond the cache
-    /// (`STREAM_BYTES`): there what the order keeps in the cache pays for
-    /// sorting, gathering the rays and putting their answers back; a
-    /// cache-resident mesh's rays (the bench's 3,674-triangle bunny) lost
-    /// 6–26 % of their time to those.
+    /// The order to trace `rays` in, or `None` for as given: sorted (see
+    /// `query::order`) where the rays are scattered and the scene has a
+    /// mesh beyond the cache (`STREAM_BYTES`), where what the order keeps
+    /// in the cache pays for sorting, gathering the rays and putting their
+    /// answers back (a cache-resident mesh's rays, the bench's
+    /// 3,674-triangle bunny, lost 6–26 % of their time to those); in tiles
+    /// where they are a camera's rows (see `query::tiles`).
     fn trace_order(
         &self,
         rays: &Rays,
         options: &QueryOptions,
     ) -> Result<Option<TraceOrder>, QueryError> {
-        if self
+        let beyond_cache = self
             .meshes
             .iter()
-            .all(|m| m.mesh.memory_bytes() <= STREAM_BYTES)
-        {
-            return Ok(None);
+            .any(|m| m.mesh.memory_bytes() > STREAM_BYTES);
+        if beyond_cache && let Some(sorted) = sorted_order(rays, self.bounds(), options)? {
+            return Ok(Some(TraceOrder::Sorted(sorted)));
         }
-        trace_order(rays, self.bounds(), options)
+        let tiles = Tiles::find(rays, CHUNK, self.bounds().diagonal());
+        Ok(tiles.map(TraceOrder::Tiled))
     }
 
     /// Every hit of each ray with t in (t_min, t_max), sorted by t (ties
@@ -738,16 +778,41 @@ impl RayScene {
     }
 }
 
-/// `answers`, one per ray traced in `order`, put back in the rays' order.
-fn in_rays_order<T: Copy + Default + Send + Sync>(
-    answers: Vec<T>,
-    order: Option<&TraceOrder>,
-    options: &QueryOptions,
-) -> Result<Vec<T>, QueryError> {
+/// Rays per chunk of a query traced in `order`.
+fn chunk_len(order: Option<&TraceOrder>) -> usize {
     match order {
-        None => Ok(answers),
-        Some(order) => options.run(|| Ok(unsort(&answers, &order.slot))),
+        Some(TraceOrder::Tiled(tiles)) => tiles.chunk_len(),
+        _ => CHUNK,
     }
+}
+
+/// A chunk's nearest-hit answers in tiles, each put in its ray's place in
+/// `sink`, which starts as misses (a tile's misses would be two runs of
+/// four).
+struct InTiles<'t, S> {
+    sink: S,
+    chunk: TiledChunk<'t>,
+}
+
+impl<'t, S: AnswerSink> InTiles<'t, S> {
+    fn new(mut sink: S, tiles: &'t Tiles) -> Self {
+        let len = sink.len();
+        sink.misses(0..len);
+        let chunk = tiles.chunk(len);
+        InTiles { sink, chunk }
+    }
+}
+
+impl<S: AnswerSink> AnswerSink for InTiles<'_, S> {
+    fn len(&self) -> usize {
+        self.sink.len()
+    }
+    #[inline(always)]
+    fn put(&mut self, p: usize, answer: &Answer) {
+        self.sink.put(self.chunk.ray(p), answer);
+    }
+    /// Misses already.
+    fn misses(&mut self, _: std::ops::Range<usize>) {}
 }
 
 /// Rays of a chunk to be traced alone, by the watertight test's axis
@@ -911,9 +976,16 @@ mod tests {
         scene.add_mesh(&v, &f, Some(m)).unwrap();
         let (o, d) = scattered(&mut rng, 20_000);
         let rays = Rays::new(&o, &d, 0.0, 2.5).unwrap();
-        let order = trace_order(&rays, scene.bounds(), &threads(1)).unwrap();
-        let order = order.expect("scattered rays are sorted");
-        assert!(order.rays.iter().enumerate().any(|(s, &i)| s != i as usize));
+        let sorted = sorted_order(&rays, scene.bounds(), &threads(1)).unwrap();
+        let sorted = sorted.expect("scattered rays are sorted");
+        assert!(
+            sorted
+                .rays
+                .iter()
+                .enumerate()
+                .any(|(s, &i)| s != i as usize)
+        );
+        let order = TraceOrder::Sorted(sorted);
         for n in [1, 2] {
             let sorted = scene
                 .intersect_in(&rays, Some(&order), &threads(n))
@@ -979,6 +1051,61 @@ mod tests {
             .collect();
         let eye = [0.5, 0.5, 2.0].repeat(20_000);
         let camera = Rays::new(&eye, &camera, 0.0, f64::INFINITY).unwrap();
-        assert!(big.trace_order(&camera, &threads(1)).unwrap().is_none());
+        let order = big.trace_order(&camera, &threads(1)).unwrap();
+        assert!(matches!(order, Some(TraceOrder::Tiled(_))));
+    }
+
+    #[test]
+    fn a_cameras_rays_in_tiles_answer_as_given() {
+        let mut rng = PixelRng::new(13, 0, 0);
+        let mut scene = RayScene::new();
+        let (v, f) = soup(&mut rng, 400);
+        scene.add_mesh(&v, &f, None).unwrap();
+        let (v, f) = soup(&mut rng, 300);
+        let m = DMat4::from_rotation_translation(DQuat::from_rotation_x(0.4), DVec3::X * 0.3);
+        scene.add_mesh(&v, &f, Some(m)).unwrap();
+        // Rows of 64 (eight bands a chunk), of 600 (one band, traced in
+        // pieces) and of 1,200 (a band beyond a chunk), each with a last
+        // band cut short; a pinhole camera's rays and an orthographic
+        // one's.
+        for (width, rows, pinhole) in [(64, 70, true), (600, 9, false), (1200, 5, true)] {
+            let n = width * rows + width / 2;
+            let pixel = |k: usize| {
+                // Square pixels, the rows about the middle.
+                let (x, y) = ((k % width) as f64, (k / width) as f64 - rows as f64 / 2.0);
+                [x / width as f64 * 2.4 - 1.2, y / width as f64 * 2.4]
+            };
+            let (o, d): (Vec<f64>, Vec<f64>) = if pinhole {
+                let d = (0..n).flat_map(|k| {
+                    let [x, y] = pixel(k);
+                    [x, y, -2.0]
+                });
+                ([0.1, 0.0, 3.0].repeat(n), d.collect())
+            } else {
+                let o = (0..n).flat_map(|k| {
+                    let [x, y] = pixel(k);
+                    [x, y, 3.0]
+                });
+                (o.collect(), [0.2, 0.1, -1.0].repeat(n))
+            };
+            let rays = Rays::new(&o, &d, 0.0, f64::INFINITY).unwrap();
+            let order = scene.trace_order(&rays, &threads(1)).unwrap();
+            assert!(matches!(order, Some(TraceOrder::Tiled(_))), "{width}");
+            for t in [1, 2] {
+                let tiled = scene.intersect_in(&rays, order.as_ref(), &threads(t));
+                let given = scene.intersect_in(&rays, None, &threads(t)).unwrap();
+                assert!(tiled.unwrap() == given);
+                let hit = given.t.iter().filter(|t| t.is_finite()).count();
+                assert!(hit > n / 10 && hit < n * 9 / 10, "{hit} of {n}");
+                assert_eq!(
+                    scene.occluded_in(&rays, order.as_ref(), &threads(t)),
+                    scene.occluded_in(&rays, None, &threads(t))
+                );
+                assert_eq!(
+                    scene.count_in(&rays, order.as_ref(), &threads(t)),
+                    scene.count_in(&rays, None, &threads(t))
+                );
+            }
+        }
     }
 }
