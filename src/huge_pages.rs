@@ -6,6 +6,10 @@
 //! to the program (Linux's `transparent_hugepage=madvise`, the usual
 //! default), only a program that asks gets them.
 //!
+//! The same request serves a query's big answers ([`zeros`]): memory fresh
+//! from the system is faulted in by its first write, a 4 KiB page at a
+//! time, and a million rays' nearest hits (64 MB) took 16 Ki faults.
+//!
 //! The request is a hint: it changes no value, and where it is refused or
 //! not supported the arrays are ordinary ones.
 
@@ -29,6 +33,17 @@ pub fn with_capacity<T>(capacity: usize) -> Vec<T> {
 pub fn collect<T>(items: impl ExactSizeIterator<Item = T>) -> Vec<T> {
     let mut v = with_capacity(items.len());
     v.extend(items);
+    v
+}
+
+/// `n` copies of `zero`, a zero (all bits 0), as `vec![zero; n]` makes
+/// them: memory the allocator takes from the system as it is, with no
+/// pass over it here. That memory is advised as by [`with_capacity`], so
+/// whoever writes it first (a query's workers, each its own chunks) faults
+/// it in a huge page at a time rather than 4 KiB at a time.
+pub fn zeros<T: Clone>(zero: T, n: usize) -> Vec<T> {
+    let v = vec![zero; n];
+    advise(v.as_ptr() as usize, n.saturating_mul(size_of::<T>()));
     v
 }
 
@@ -68,6 +83,8 @@ mod tests {
         let big: Vec<u64> = super::collect((0..n).map(|i| i as u64 * 3));
         assert_eq!(big.len(), n);
         assert!(big.iter().enumerate().all(|(i, &v)| v == i as u64 * 3));
+        let zeros = super::zeros(0.0f64, n);
+        assert!(zeros.len() == n && zeros.iter().all(|&z| z == 0.0));
         let mut grown: Vec<u32> = super::with_capacity(super::FROM_BYTES);
         grown.extend(0..super::FROM_BYTES as u32 * 2);
         assert_eq!(

@@ -25,6 +25,7 @@ use crate::geometry::Aabb;
 use crate::geometry::cuboid::slab_interval;
 use crate::geometry::mesh::{FacetHit, STREAM};
 use crate::geometry::triangle::axis_permutation;
+use crate::huge_pages;
 
 // A counting group is a packet or a stream, as its rays are.
 const _: () = assert!(STREAM == PACKET);
@@ -68,11 +69,8 @@ const MISS: Nearest = Nearest {
     hit: None,
 };
 
-/// One ray's answer to a nearest-hit query, the fields of [`Hits`] in one
-/// cache line: how the answers of rays traced in an order of the query's
-/// own wait to be put back in the rays' order (one line read per ray).
+/// One ray's answer to a nearest-hit query, the fields of [`Hits`].
 #[derive(Clone, Copy, Debug)]
-#[repr(align(64))]
 struct Answer {
     t: f64,
     u: f64,
@@ -104,13 +102,73 @@ trait AnswerSink {
     }
 }
 
-impl AnswerSink for Vec<Answer> {
+/// The answers of rays traced in a sorted order, waiting to be put back:
+/// one [`Answer`] a ray, as the 8 words of a cache line of its own, in
+/// one block of zeros (which the allocator takes from the system as they
+/// are) advised for huge pages (`huge_pages::zeros`). As a vector of
+/// `Answer`s, or one per chunk, the block was faulted in 4 KiB at a time
+/// by every query: 16 Ki faults, a tenth of an incoherent 1M-ray query's
+/// time from Python.
+struct Waiting {
+    words: Vec<u64>,
+    /// Words before the first line.
+    skip: usize,
+    len: usize,
+}
+
+/// Words of an answer.
+const WORDS: usize = 8;
+
+impl Waiting {
+    fn new(len: usize) -> Self {
+        let words = huge_pages::zeros(0u64, WORDS * len + WORDS - 1);
+        let skip = (words.as_ptr() as usize).wrapping_neg() % 64 / 8;
+        Waiting { words, skip, len }
+    }
+
+    /// The answers of each chunk of `chunk` rays.
+    fn chunks_mut(&mut self, chunk: usize) -> rayon::slice::ChunksMut<'_, u64> {
+        self.words[self.skip..self.skip + WORDS * self.len].par_chunks_mut(WORDS * chunk)
+    }
+
+    /// Answer `i`'s line.
+    #[inline(always)]
+    fn line(&self, i: usize) -> &[u64] {
+        &self.words[self.skip + WORDS * i..self.skip + WORDS * (i + 1)]
+    }
+
+    #[inline(always)]
+    fn get(&self, i: usize) -> Answer {
+        let w = self.line(i);
+        let f = |k: usize| f64::from_bits(w[k]);
+        Answer {
+            t: f(0),
+            u: f(1),
+            v: f(2),
+            normal: [f(3), f(4), f(5)],
+            mesh_id: w[6] as i64,
+            triangle_id: w[7] as i64,
+        }
+    }
+}
+
+impl AnswerSink for &mut [u64] {
     fn len(&self) -> usize {
-        self.as_slice().len()
+        <[u64]>::len(self) / WORDS
     }
     #[inline(always)]
-    fn put(&mut self, i: usize, answer: &Answer) {
-        self[i] = *answer;
+    fn put(&mut self, i: usize, a: &Answer) {
+        let [x, y, z] = a.normal;
+        self[WORDS * i..WORDS * (i + 1)].copy_from_slice(&[
+            a.t.to_bits(),
+            a.u.to_bits(),
+            a.v.to_bits(),
+            x.to_bits(),
+            y.to_bits(),
+            z.to_bits(),
+            a.mesh_id as u64,
+            a.triangle_id as u64,
+        ]);
     }
 }
 
@@ -176,14 +234,16 @@ impl RayScene {
         let chunk = chunk_len(order);
         // Zeros, which the allocator takes from the system as they are
         // (no pass over them here): each worker faults in and writes its
-        // own chunks, a miss's t and ids included.
+        // own chunks, a miss's t and ids included, 2 MiB at a time
+        // (`huge_pages::zeros`: 4 KiB pages cost a 1M-ray query 25–30 ms
+        // of faults).
         let mut hits = Hits {
-            t: vec![0.0; n],
-            mesh_id: vec![0; n],
-            triangle_id: vec![0; n],
-            u: vec![0.0; n],
-            v: vec![0.0; n],
-            normal: vec![0.0; 3 * n],
+            t: huge_pages::zeros(0.0, n),
+            mesh_id: huge_pages::zeros(0, n),
+            triangle_id: huge_pages::zeros(0, n),
+            u: huge_pages::zeros(0.0, n),
+            v: huge_pages::zeros(0.0, n),
+            normal: huge_pages::zeros(0.0, 3 * n),
         };
         let Hits {
             t,
@@ -233,28 +293,24 @@ impl RayScene {
             }
         };
         options.run(|| {
-            // Each chunk's answers in one vector of whole answers (on the
-            // worker's heap, reused from query to query), then each ray's
-            // read back from its slot: one cache line a ray.
-            let sorted = (0..n.div_ceil(CHUNK))
-                .into_par_iter()
-                .map(|c| {
-                    let mut out = vec![NO_HIT; CHUNK.min(n - c * CHUNK)];
-                    self.nearest_chunk(rays, order, c * CHUNK, &mut out, scale, options)?;
-                    Ok(out)
-                })
-                .collect::<Result<Vec<_>, QueryError>>()?;
+            // Each ray's answer read back from its slot: one cache line a
+            // ray.
+            let mut waiting = Waiting::new(n);
+            waiting
+                .chunks_mut(CHUNK)
+                .enumerate()
+                .try_for_each(|(c, mut out)| {
+                    self.nearest_chunk(rays, order, c * CHUNK, &mut out, scale, options)
+                })?;
             chunks
                 .zip(slot.par_chunks(CHUNK))
                 .for_each(|((_, mut out), slots)| {
                     for (i, &s) in slots.iter().enumerate() {
                         // The answers' random reads, asked for ahead.
                         if let Some(&ahead) = slots.get(i + UNSORT_AHEAD) {
-                            let ahead = ahead as usize;
-                            prefetch(&sorted[ahead / CHUNK][ahead % CHUNK]);
+                            prefetch(&waiting.line(ahead as usize)[0]);
                         }
-                        let s = s as usize;
-                        out.put(i, &sorted[s / CHUNK][s % CHUNK]);
+                        out.put(i, &waiting.get(s as usize));
                     }
                 });
             Ok(())
@@ -403,7 +459,7 @@ impl RayScene {
         options: &QueryOptions,
         trace: impl Fn(&Rays, usize, &mut [T]) + Sync,
     ) -> Result<Vec<T>, QueryError> {
-        let mut answers = vec![T::default(); rays.len()];
+        let mut answers = huge_pages::zeros(T::default(), rays.len());
         let chunk = chunk_len(order);
         options.run(|| {
             answers
