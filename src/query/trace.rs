@@ -69,8 +69,11 @@ const MISS: Nearest = Nearest {
     hit: None,
 };
 
-/// One ray's answer to a nearest-hit query, the fields of [`Hits`].
+/// One ray's answer to a nearest-hit query, the fields of [`Hits`] in one
+/// cache line: how the answers of rays traced in an order of the query's
+/// own wait to be put back in the rays' order (one line read per ray).
 #[derive(Clone, Copy, Debug)]
+#[repr(align(64))]
 struct Answer {
     t: f64,
     u: f64,
@@ -102,73 +105,13 @@ trait AnswerSink {
     }
 }
 
-/// The answers of rays traced in a sorted order, waiting to be put back:
-/// one [`Answer`] a ray, as the 8 words of a cache line of its own, in
-/// one block of zeros (which the allocator takes from the system as they
-/// are) advised for huge pages (`huge_pages::zeros`). As a vector of
-/// `Answer`s, or one per chunk, the block was faulted in 4 KiB at a time
-/// by every query: 16 Ki faults, a tenth of an incoherent 1M-ray query's
-/// time from Python.
-struct Waiting {
-    words: Vec<u64>,
-    /// Words before the first line.
-    skip: usize,
-    len: usize,
-}
-
-/// Words of an answer.
-const WORDS: usize = 8;
-
-impl Waiting {
-    fn new(len: usize) -> Self {
-        let words = huge_pages::zeros(0u64, WORDS * len + WORDS - 1);
-        let skip = (words.as_ptr() as usize).wrapping_neg() % 64 / 8;
-        Waiting { words, skip, len }
-    }
-
-    /// The answers of each chunk of `chunk` rays.
-    fn chunks_mut(&mut self, chunk: usize) -> rayon::slice::ChunksMut<'_, u64> {
-        self.words[self.skip..self.skip + WORDS * self.len].par_chunks_mut(WORDS * chunk)
-    }
-
-    /// Answer `i`'s line.
-    #[inline(always)]
-    fn line(&self, i: usize) -> &[u64] {
-        &self.words[self.skip + WORDS * i..self.skip + WORDS * (i + 1)]
-    }
-
-    #[inline(always)]
-    fn get(&self, i: usize) -> Answer {
-        let w = self.line(i);
-        let f = |k: usize| f64::from_bits(w[k]);
-        Answer {
-            t: f(0),
-            u: f(1),
-            v: f(2),
-            normal: [f(3), f(4), f(5)],
-            mesh_id: w[6] as i64,
-            triangle_id: w[7] as i64,
-        }
-    }
-}
-
-impl AnswerSink for &mut [u64] {
+impl AnswerSink for Vec<Answer> {
     fn len(&self) -> usize {
-        <[u64]>::len(self) / WORDS
+        self.as_slice().len()
     }
     #[inline(always)]
-    fn put(&mut self, i: usize, a: &Answer) {
-        let [x, y, z] = a.normal;
-        self[WORDS * i..WORDS * (i + 1)].copy_from_slice(&[
-            a.t.to_bits(),
-            a.u.to_bits(),
-            a.v.to_bits(),
-            x.to_bits(),
-            y.to_bits(),
-            z.to_bits(),
-            a.mesh_id as u64,
-            a.triangle_id as u64,
-        ]);
+    fn put(&mut self, i: usize, answer: &Answer) {
+        self[i] = *answer;
     }
 }
 
@@ -234,9 +177,8 @@ impl RayScene {
         let chunk = chunk_len(order);
         // Zeros, which the allocator takes from the system as they are
         // (no pass over them here): each worker faults in and writes its
-        // own chunks, a miss's t and ids included, 2 MiB at a time
-        // (`huge_pages::zeros`: 4 KiB pages cost a 1M-ray query 25–30 ms
-        // of faults).
+        // own chunks, a miss's t and ids included, 2 MiB at a time where
+        // the memory is fresh from the system (`huge_pages::zeros`).
         let mut hits = Hits {
             t: huge_pages::zeros(0.0, n),
             mesh_id: huge_pages::zeros(0, n),
@@ -293,24 +235,28 @@ impl RayScene {
             }
         };
         options.run(|| {
-            // Each ray's answer read back from its slot: one cache line a
-            // ray.
-            let mut waiting = Waiting::new(n);
-            waiting
-                .chunks_mut(CHUNK)
-                .enumerate()
-                .try_for_each(|(c, mut out)| {
-                    self.nearest_chunk(rays, order, c * CHUNK, &mut out, scale, options)
-                })?;
+            // Each chunk's answers in one vector of whole answers (on the
+            // worker's heap, reused from query to query), then each ray's
+            // read back from its slot: one cache line a ray.
+            let sorted = (0..n.div_ceil(CHUNK))
+                .into_par_iter()
+                .map(|c| {
+                    let mut out = vec![NO_HIT; CHUNK.min(n - c * CHUNK)];
+                    self.nearest_chunk(rays, order, c * CHUNK, &mut out, scale, options)?;
+                    Ok(out)
+                })
+                .collect::<Result<Vec<_>, QueryError>>()?;
             chunks
                 .zip(slot.par_chunks(CHUNK))
                 .for_each(|((_, mut out), slots)| {
                     for (i, &s) in slots.iter().enumerate() {
                         // The answers' random reads, asked for ahead.
                         if let Some(&ahead) = slots.get(i + UNSORT_AHEAD) {
-                            prefetch(&waiting.line(ahead as usize)[0]);
+                            let ahead = ahead as usize;
+                            prefetch(&sorted[ahead / CHUNK][ahead % CHUNK]);
                         }
-                        out.put(i, &waiting.get(s as usize));
+                        let s = s as usize;
+                        out.put(i, &sorted[s / CHUNK][s % CHUNK]);
                     }
                 });
             Ok(())
@@ -1162,6 +1108,20 @@ mod tests {
                     scene.count_in(&rays, None, &threads(t))
                 );
             }
+            // A bad row in a batch still to be checked: each query reports
+            // it as `Rays::new` does, tiles or not.
+            let mut bad = d.clone();
+            bad[3 * (width * (rows - 1) + 2) + 2] = f64::NAN;
+            let eager = Rays::new(&o, &bad, 0.0, f64::INFINITY).unwrap_err();
+            let deferred = Rays::deferred(&o, &bad, 0.0, f64::INFINITY).unwrap();
+            assert!(matches!(
+                scene.trace_order(&deferred, &threads(1)).unwrap(),
+                Some(TraceOrder::Tiled(_))
+            ));
+            assert_eq!(scene.intersect(&deferred, &threads(2)).unwrap_err(), eager);
+            assert_eq!(scene.occluded(&deferred, &threads(2)).unwrap_err(), eager);
+            let counted = scene.count_intersections(&deferred, &threads(2));
+            assert_eq!(counted.unwrap_err(), eager);
         }
     }
 }
