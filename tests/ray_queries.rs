@@ -17,7 +17,7 @@ use prism::accel::{Aggregate, Primitive, Shape};
 use prism::geometry::triangle::{WatertightRay, triangle_hit};
 use prism::geometry::{Mesh, MeshData, MeshInstance};
 use prism::math::{Ray, Transform};
-use prism::query::{QueryError, QueryOptions, RayScene, Rays};
+use prism::query::{Coordinates, QueryError, QueryOptions, RayScene, Rays};
 use prism::scene::LoadOptions;
 use prism::scene::models::load_model;
 use prism::scene::resources::Resources;
@@ -989,6 +989,111 @@ fn answers_do_not_depend_on_threads() {
     assert_eq!(
         one,
         closed.contains(&points, &QueryOptions::default()).unwrap()
+    );
+}
+
+/// Rays given in single precision are read in place and answer as their
+/// values widened to double precision do, bit for bit, on every path: as
+/// given (packets, streams, alone), a camera's rows in tiles, scattered
+/// rays sorted through a mesh beyond the cache; checked eagerly or by the
+/// query, with the same errors.
+#[test]
+fn single_precision_rays_answer_as_their_doubles() {
+    let mut rng = Rng(14);
+    let (mut scene, _) = two_soups(&mut rng);
+    // 262,144 triangles: beyond the 8 MB at which scattered rays are
+    // sorted.
+    let big = torus(512, 256, 0.002, &mut rng);
+    let before = scene.memory_bytes();
+    scene.add_mesh(&big.vertices, &big.faces, None).unwrap();
+    assert!(scene.memory_bytes() - before > 12 << 20);
+    let (mixed_o, mixed_d) = mixed_rays(&mut rng, 6000);
+    let (width, height) = (128, 48);
+    let (mut camera_o, mut camera_d) = (Vec::new(), Vec::new());
+    for k in 0..width * height {
+        let (x, y) = ((k % width) as f64, (k / width) as f64);
+        camera_o.extend([0.1, -4.0, 0.2]);
+        camera_d.extend([(x - 64.0) / 40.0, 1.5, (y - 24.0) / 40.0]);
+    }
+    let (mut scattered_o, mut scattered_d) = (Vec::new(), Vec::new());
+    for _ in 0..20_000 {
+        scattered_o.extend([
+            rng.range(-1.5, 1.5),
+            rng.range(-1.5, 1.5),
+            rng.range(-0.5, 0.5),
+        ]);
+        scattered_d.extend(rng.direction().to_array());
+    }
+    for (o, d) in [
+        (mixed_o, mixed_d),
+        (camera_o, camera_d),
+        (scattered_o, scattered_d),
+    ] {
+        let (o32, d32): (Vec<f32>, Vec<f32>) = (
+            o.iter().map(|&x| x as f32).collect(),
+            d.iter().map(|&x| x as f32).collect(),
+        );
+        let (o64, d64): (Vec<f64>, Vec<f64>) = (
+            o32.iter().map(|&x| f64::from(x)).collect(),
+            d32.iter().map(|&x| f64::from(x)).collect(),
+        );
+        let single = [
+            Rays::from_coordinates(o32[..].into(), d32[..].into(), 0.0, f64::INFINITY).unwrap(),
+            Rays::deferred_from_coordinates(o32[..].into(), d32[..].into(), 0.0, f64::INFINITY)
+                .unwrap(),
+            // Mixed: origins in double, directions in single precision.
+            Rays::from_coordinates(o64[..].into(), d32[..].into(), 0.0, f64::INFINITY).unwrap(),
+        ];
+        let double = Rays::new(&o64, &d64, 0.0, f64::INFINITY).unwrap();
+        for threads in [1, 2] {
+            let expected = (
+                scene.intersect(&double, &options(threads)).unwrap(),
+                scene.occluded(&double, &options(threads)).unwrap(),
+                scene
+                    .count_intersections(&double, &options(threads))
+                    .unwrap(),
+                scene.all_intersections(&double, &options(threads)).unwrap(),
+            );
+            assert!(expected.1.iter().any(|&b| b) && !expected.1.iter().all(|&b| b));
+            for rays in &single {
+                assert_eq!(rays.ray(7), double.ray(7));
+                let got = (
+                    scene.intersect(rays, &options(threads)).unwrap(),
+                    scene.occluded(rays, &options(threads)).unwrap(),
+                    scene.count_intersections(rays, &options(threads)).unwrap(),
+                    scene.all_intersections(rays, &options(threads)).unwrap(),
+                );
+                assert!(got == expected, "{} rays, {threads} threads", o.len() / 3);
+            }
+        }
+    }
+    // Bad values: the errors of their doubles.
+    let o32 = [0.0f32, 0.0, -5.0, 0.1, 0.1, -5.0, 0.2, 0.2, -5.0];
+    for (row, value) in [(1, f32::NAN), (2, f32::INFINITY)] {
+        let mut d32 = [0.0f32, 0.0, 1.0].repeat(3);
+        d32[3 * row + 1] = value;
+        let d64: Vec<f64> = d32.iter().map(|&x| f64::from(x)).collect();
+        let o64: Vec<f64> = o32.iter().map(|&x| f64::from(x)).collect();
+        let eager = Rays::new(&o64, &d64, 0.0, f64::INFINITY).unwrap_err();
+        let single: Coordinates = d32[..].into();
+        let err = Rays::from_coordinates(o32[..].into(), single, 0.0, f64::INFINITY).unwrap_err();
+        assert_eq!(err, eager);
+        let deferred =
+            Rays::deferred_from_coordinates(o32[..].into(), single, 0.0, f64::INFINITY).unwrap();
+        assert_eq!(scene.intersect(&deferred, &options(1)).unwrap_err(), eager);
+    }
+    let zero = [0.0f32, 0.0, 1.0, 0.0, 0.0, 0.0];
+    let err = Rays::from_coordinates(o32[..6].into(), zero[..].into(), 0.0, 1.0).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "directions: row 1 is zero (every component below 1e-30)"
+    );
+    // Beyond ±1e30, which single precision can hold.
+    let far = [0.0f32, 0.0, 2e30];
+    let err = Rays::from_coordinates(far[..].into(), o32[..3].into(), 0.0, 1.0).unwrap_err();
+    assert!(
+        err.to_string().starts_with("origins: row 0 holds 2"),
+        "{err}"
     );
 }
 

@@ -15,7 +15,7 @@ use std::time::Duration;
 use glam::DMat4;
 use numpy::{IntoPyArray, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
 use prism::limits;
-use prism::query::{QueryError, QueryOptions, RayScene as Scene, Rays};
+use prism::query::{Coordinates, QueryError, QueryOptions, RayScene as Scene, Rays};
 use prism::scene::LoadOptions;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -67,12 +67,14 @@ impl RayScene {
         );
         // The coordinates are checked by the query's workers, chunk by
         // chunk, not here before the work is shared.
-        let rays = Rays::deferred(o.slice()?, d.slice()?, tmin, tmax).map_err(query_error)?;
+        let rays = Rays::deferred_from_coordinates(o.coordinates()?, d.coordinates()?, tmin, tmax)
+            .map_err(query_error)?;
         let threads = match threads_arg(threads) {
             Ok(t) => t,
             Err(e) => {
                 // A bad ray is reported before a bad thread count.
-                Rays::new(o.slice()?, d.slice()?, tmin, tmax).map_err(query_error)?;
+                Rays::from_coordinates(o.coordinates()?, d.coordinates()?, tmin, tmax)
+                    .map_err(query_error)?;
                 return Err(e);
             }
         };
@@ -104,14 +106,14 @@ impl RayScene {
         transform: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<u32> {
         let vertices = Coords::of("vertices", vertices)?;
-        let vertices = vertices.slice()?;
+        let vertices = vertices.doubles()?;
         let faces = face_indices(faces, vertices.len() / 3)?;
         let transform = transform.map(matrix).transpose()?;
         py.detach(|| {
             let _adding = self.adding.lock().map_err(|_| poisoned())?;
             let mut scene = Scene::clone(self.current()?.as_ref());
             let id = scene
-                .add_mesh(vertices, &faces, transform)
+                .add_mesh(&vertices, &faces, transform)
                 .map_err(query_error)?;
             *self.scene.write().map_err(|_| poisoned())? = Arc::new(scene);
             Ok(id)
@@ -282,9 +284,9 @@ impl RayScene {
     ) -> PyResult<Bound<'py, PyAny>> {
         let scene = self.current()?;
         let p = Coords::of("points", points)?;
-        let p = p.slice()?;
+        let p = p.doubles()?;
         let inside = run(py, p.len() / 3, threads_arg(threads)?, |options| {
-            scene.contains(p, options)
+            scene.contains(&p, options)
         })?;
         Ok(inside.into_pyarray(py).into_any())
     }
@@ -312,10 +314,11 @@ fn threads_arg(threads: Option<i64>) -> PyResult<Option<usize>> {
     }
 }
 
-/// An (N, 3) coordinate array: float64 read in place, float32 converted.
+/// An (N, 3) C-contiguous coordinate array, float64 or float32, read in
+/// place.
 enum Coords<'py> {
-    Borrowed(&'static str, PyReadonlyArray2<'py, f64>),
-    Converted(Vec<f64>),
+    Double(&'static str, PyReadonlyArray2<'py, f64>),
+    Single(&'static str, PyReadonlyArray2<'py, f32>),
 }
 
 impl<'py> Coords<'py> {
@@ -323,47 +326,69 @@ impl<'py> Coords<'py> {
         let shape_error = |shape: &[usize]| {
             PyValueError::new_err(format!("{name}: must have shape (N, 3), got {shape:?}"))
         };
+        // Read in place only row by row (a Fortran-ordered array is
+        // contiguous too, column by column).
+        let layout_error = || {
+            PyValueError::new_err(format!(
+                "{name}: must be C-contiguous (np.ascontiguousarray)"
+            ))
+        };
         if let Ok(a) = obj.cast::<PyArray2<f64>>() {
             if a.shape()[1] != 3 {
                 return Err(shape_error(a.shape()));
             }
-            // Read in place only row by row (a Fortran-ordered array is
-            // contiguous too, column by column).
             if !a.is_c_contiguous() {
-                return Err(PyValueError::new_err(format!(
-                    "{name}: must be C-contiguous (np.ascontiguousarray)"
-                )));
+                return Err(layout_error());
             }
             let a = a
                 .try_readonly()
                 .map_err(|e| PyValueError::new_err(format!("{name}: {e}")))?;
-            return Ok(Coords::Borrowed(name, a));
+            return Ok(Coords::Double(name, a));
         }
         if let Ok(a) = obj.cast::<PyArray2<f32>>() {
             if a.shape()[1] != 3 {
                 return Err(shape_error(a.shape()));
             }
+            if !a.is_c_contiguous() {
+                return Err(layout_error());
+            }
             let a = a
                 .try_readonly()
                 .map_err(|e| PyValueError::new_err(format!("{name}: {e}")))?;
-            return Ok(Coords::Converted(
-                a.as_array().iter().map(|&x| f64::from(x)).collect(),
-            ));
+            return Ok(Coords::Single(name, a));
         }
         Err(PyValueError::new_err(format!(
             "{name}: must be an (N, 3) float64 or float32 NumPy array"
         )))
     }
 
-    fn slice(&self) -> PyResult<&[f64]> {
+    /// The coordinates in place, in their own precision.
+    fn coordinates(&self) -> PyResult<Coordinates<'_>> {
+        let layout_error = |name: &str| {
+            PyValueError::new_err(format!(
+                "{name}: must be C-contiguous (np.ascontiguousarray)"
+            ))
+        };
         match self {
-            Coords::Borrowed(name, a) => a.as_slice().map_err(|_| {
-                PyValueError::new_err(format!(
-                    "{name}: must be C-contiguous (np.ascontiguousarray)"
-                ))
-            }),
-            Coords::Converted(v) => Ok(v),
+            Coords::Double(name, a) => a
+                .as_slice()
+                .map(Coordinates::F64)
+                .map_err(|_| layout_error(name)),
+            Coords::Single(name, a) => a
+                .as_slice()
+                .map(Coordinates::F32)
+                .map_err(|_| layout_error(name)),
         }
+    }
+
+    /// The coordinates in double precision: float64 in place, float32
+    /// widened into a copy (vertices, which a mesh's build copies anyway,
+    /// and `contains`' points).
+    fn doubles(&self) -> PyResult<std::borrow::Cow<'_, [f64]>> {
+        Ok(match self.coordinates()? {
+            Coordinates::F64(v) => std::borrow::Cow::Borrowed(v),
+            Coordinates::F32(v) => v.iter().map(|&x| f64::from(x)).collect(),
+        })
     }
 }
 

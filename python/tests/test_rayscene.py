@@ -220,6 +220,34 @@ def test_float32_and_noncontiguous_inputs():
     assert prism.RayScene(v, f).intersect(o.tolist(), d.tolist())["t"].shape == (300,)
 
 
+def test_float32_rays_answer_as_their_float64_values():
+    # Read in place and widened as they are traced: every query gives the
+    # answers of the widened values, for scattered rays and a camera's rows.
+    v, f = random_soup(400, 21)
+    scene = prism.RayScene(v, f)
+    o, d = rays(5000, 22)
+    y, x = np.mgrid[0:48, 0:128]
+    cam_d = np.stack([(x - 64) / 40.0, (y - 24) / 40.0, np.full(x.shape, -1.5)], -1).reshape(-1, 3)
+    cam_o = np.broadcast_to([0.1, 0.2, 4.0], cam_d.shape)
+    for o, d in ((o, d), (cam_o, cam_d)):
+        o32, d32 = np.ascontiguousarray(o, np.float32), np.ascontiguousarray(d, np.float32)
+        o64, d64 = o32.astype(np.float64), d32.astype(np.float64)
+        for threads in (1, 2):
+            ref, got = scene.intersect(o64, d64, threads=threads), scene.intersect(o32, d32, threads=threads)
+            assert set(ref) == set(got)
+            for key in ref:
+                np.testing.assert_array_equal(ref[key], got[key])
+            assert 0 < (ref["triangle_id"] >= 0).sum() < len(o)
+            np.testing.assert_array_equal(scene.occluded(o64, d64, threads=threads), scene.occluded(o32, d32, threads=threads))
+            np.testing.assert_array_equal(scene.count_intersections(o64, d64, threads=threads),
+                                          scene.count_intersections(o32, d32, threads=threads))
+            ref, got = scene.all_intersections(o64, d64, threads=threads), scene.all_intersections(o32, d32, threads=threads)
+            for key in ref:
+                np.testing.assert_array_equal(ref[key], got[key])
+    with pytest.raises(ValueError, match="directions: row 1"):
+        scene.intersect(np.zeros((2, 3), np.float32), np.array([[0, 0, 1], [np.nan, 0, 1]], np.float32))
+
+
 def test_from_file_reads_a_model():
     scene = prism.RayScene.from_file(ROOT / "scenes" / "models" / "icosphere.ply")
     assert scene.triangle_count > 0 and scene.mesh_count == 1

@@ -15,8 +15,8 @@
 use rayon::prelude::*;
 
 use super::QueryError;
-use super::rays::{QueryOptions, Rays};
-use super::tiles::{COLUMNS, Tiles};
+use super::rays::{QueryOptions, RayChunk, Rays};
+use super::tiles::Tiles;
 use crate::geometry::Aabb;
 use crate::math::rng::splitmix64;
 
@@ -209,7 +209,7 @@ pub(crate) fn chunk_rays<'a: 'b, 'b>(
     first: usize,
     len: usize,
     gathered: &'b mut Gathered,
-) -> Result<(Rays<'b>, usize), QueryError> {
+) -> Result<(RayChunk<'b>, usize), QueryError> {
     if !matches!(order, Some(TraceOrder::Sorted(_))) {
         rays.check_chunk(first, len)?;
     }
@@ -221,21 +221,14 @@ pub(crate) fn chunk_rays<'a: 'b, 'b>(
     directions.clear();
     origins.reserve(3 * len);
     directions.reserve(3 * len);
-    let mut gather = |first: usize, count: usize| {
-        let (o, d) = rays.coordinates(first, count);
-        // A tile's row as one copy of known size (a few vector moves
-        // rather than a call).
-        if let (Ok(o), Ok(d)) = (<&[f64; 3 * COLUMNS]>::try_from(o), d.try_into()) {
-            let d: &[f64; 3 * COLUMNS] = d;
-            origins.extend_from_slice(o);
-            directions.extend_from_slice(d);
-        } else {
-            origins.extend_from_slice(o);
-            directions.extend_from_slice(d);
-        }
-    };
+    let mut gather = |first: usize, count: usize| rays.extend(first, count, origins, directions);
     match order {
-        None => return Ok((*rays, first)),
+        None => match rays.in_double() {
+            Some(chunk) => return Ok((chunk, first)),
+            // Coordinates in single precision are widened a chunk at a
+            // time, so that the searches read double precision.
+            None => gather(first, len),
+        },
         Some(TraceOrder::Sorted(sorted)) => sorted.rays[first..first + len]
             .iter()
             .for_each(|&i| gather(i as usize, 1)),

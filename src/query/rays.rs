@@ -9,14 +9,102 @@ use glam::DVec3;
 use super::QueryError;
 use crate::limits::{MAX_COORDINATE, MAX_THREADS, MIN_LENGTH};
 
-/// A batch of rays: `origins` and `directions` hold `x, y, z` of each ray
-/// in turn (a C-contiguous N×3 array), every ray searched for hits with t
-/// in (`t_min`, `t_max`). Directions need not be unit; t is measured in
-/// their lengths (the point of a hit is `origin + t·direction`).
+/// The origins or the directions of a batch of rays, `x, y, z` of each ray
+/// in turn (a C-contiguous N×3 array): in double precision, or in single
+/// precision, read in place and widened (exactly) ray by ray as the rays
+/// are traced, with no copy of the batch.
+#[derive(Clone, Copy, Debug)]
+pub enum Coordinates<'a> {
+    /// Double precision.
+    F64(&'a [f64]),
+    /// Single precision.
+    F32(&'a [f32]),
+}
+
+impl<'a> From<&'a [f64]> for Coordinates<'a> {
+    fn from(values: &'a [f64]) -> Self {
+        Coordinates::F64(values)
+    }
+}
+
+impl<'a> From<&'a [f32]> for Coordinates<'a> {
+    fn from(values: &'a [f32]) -> Self {
+        Coordinates::F32(values)
+    }
+}
+
+/// A coordinate type [`Coordinates`] holds.
+trait Coordinate: Copy + std::fmt::Display {
+    fn wide(self) -> f64;
+}
+
+impl Coordinate for f64 {
+    #[inline(always)]
+    fn wide(self) -> f64 {
+        self
+    }
+}
+
+impl Coordinate for f32 {
+    #[inline(always)]
+    fn wide(self) -> f64 {
+        f64::from(self)
+    }
+}
+
+/// Calls `$f` on the slice of a [`Coordinates`], whichever its type.
+macro_rules! each_type {
+    ($c:expr, $v:ident => $f:expr) => {
+        match $c {
+            Coordinates::F64($v) => $f,
+            Coordinates::F32($v) => $f,
+        }
+    };
+}
+
+impl Coordinates<'_> {
+    /// Number of values (three a ray).
+    fn len(&self) -> usize {
+        each_type!(*self, v => v.len())
+    }
+
+    /// Point `k`.
+    #[inline(always)]
+    fn point(&self, k: usize) -> DVec3 {
+        match *self {
+            Coordinates::F64(v) => DVec3::from_slice(&v[3 * k..]),
+            Coordinates::F32(v) => DVec3::new(
+                f64::from(v[3 * k]),
+                f64::from(v[3 * k + 1]),
+                f64::from(v[3 * k + 2]),
+            ),
+        }
+    }
+
+    /// Points `first..first + count` appended to `out`, widened.
+    #[inline(always)]
+    fn extend(&self, first: usize, count: usize, out: &mut Vec<f64>) {
+        let rows = 3 * first..3 * (first + count);
+        match *self {
+            // A tile's row (four rays) as one copy of known size: a few
+            // vector moves rather than a call.
+            Coordinates::F64(v) => match <&[f64; 12]>::try_from(&v[rows.clone()]) {
+                Ok(tile) => out.extend_from_slice(tile),
+                Err(_) => out.extend_from_slice(&v[rows]),
+            },
+            Coordinates::F32(v) => out.extend(v[rows].iter().map(|&x| f64::from(x))),
+        }
+    }
+}
+
+/// A batch of rays: their [`Coordinates`] (origins and directions), every
+/// ray searched for hits with t in (`t_min`, `t_max`). Directions need not
+/// be unit; t is measured in their lengths (the point of a hit is
+/// `origin + t·direction`).
 #[derive(Clone, Copy, Debug)]
 pub struct Rays<'a> {
-    origins: &'a [f64],
-    directions: &'a [f64],
+    origins: Coordinates<'a>,
+    directions: Coordinates<'a>,
     /// Hits at t ≤ t_min are not seen.
     pub t_min: f64,
     /// Hits at t ≥ t_max are not seen.
@@ -37,25 +125,27 @@ impl<'a> Rays<'a> {
         t_min: f64,
         t_max: f64,
     ) -> Result<Self, QueryError> {
-        let n = rows("origins", origins)?;
-        if rows("directions", directions)? != n {
+        Self::from_coordinates(origins.into(), directions.into(), t_min, t_max)
+    }
+
+    /// [`Rays::new`] for coordinates in either precision (each checked as
+    /// `Rays::new` checks them, after widening).
+    pub fn from_coordinates(
+        origins: Coordinates<'a>,
+        directions: Coordinates<'a>,
+        t_min: f64,
+        t_max: f64,
+    ) -> Result<Self, QueryError> {
+        let n = rows("origins", origins.len())?;
+        if rows("directions", directions.len())? != n {
             return Err(QueryError::invalid(
                 "directions",
                 format!("{} rays, but origins has {n}", directions.len() / 3),
             ));
         }
-        finite_rows("origins", origins)?;
-        finite_rows("directions", directions)?;
-        // A pass without an early exit first, which the compiler turns
-        // into vector code; the row is looked for only when there is one.
-        let zero = zero_direction;
-        let any_zero = directions
-            .chunks_exact(3)
-            .fold(false, |seen, d| seen | zero(d));
-        if let Some(k) = any_zero
-            .then(|| directions.chunks_exact(3).position(zero))
-            .flatten()
-        {
+        each_type!(origins, v => finite_rows("origins", v))?;
+        each_type!(directions, v => finite_rows("directions", v))?;
+        if let Some(k) = each_type!(directions, v => first_zero_row(v)) {
             return Err(QueryError::invalid(
                 "directions",
                 format!("row {k} is zero (every component below {MIN_LENGTH:e})"),
@@ -100,15 +190,25 @@ impl<'a> Rays<'a> {
         t_min: f64,
         t_max: f64,
     ) -> Result<Self, QueryError> {
-        let n = rows("origins", origins)?;
-        if rows("directions", directions)? != n
+        Self::deferred_from_coordinates(origins.into(), directions.into(), t_min, t_max)
+    }
+
+    /// [`Rays::deferred`] for coordinates in either precision.
+    pub fn deferred_from_coordinates(
+        origins: Coordinates<'a>,
+        directions: Coordinates<'a>,
+        t_min: f64,
+        t_max: f64,
+    ) -> Result<Self, QueryError> {
+        let n = rows("origins", origins.len())?;
+        if rows("directions", directions.len())? != n
             || t_min.is_nan()
             || t_min < 0.0
             || t_max.is_nan()
             || t_min >= t_max
         {
             // The error, in Rays::new's order.
-            return Self::new(origins, directions, t_min, t_max);
+            return Self::from_coordinates(origins, directions, t_min, t_max);
         }
         Ok(Rays {
             origins,
@@ -125,34 +225,39 @@ impl<'a> Rays<'a> {
         if !self.unchecked {
             return Ok(());
         }
-        let (o, d) = (
-            &self.origins[3 * first..3 * (first + count)],
-            &self.directions[3 * first..3 * (first + count)],
-        );
-        let bounded = |v: &[f64]| {
-            v.iter()
-                .fold(true, |ok, v| ok & (v.abs() <= MAX_COORDINATE))
-        };
-        let zero = d
-            .chunks_exact(3)
-            .fold(false, |seen, d| seen | zero_direction(d));
-        if bounded(o) && bounded(d) && !zero {
+        let rows = 3 * first..3 * (first + count);
+        let bounded = each_type!(self.origins, v => bounded(&v[rows.clone()]))
+            && each_type!(self.directions, v => bounded(&v[rows.clone()]));
+        if bounded && !each_type!(self.directions, v => any_zero_row(&v[rows.clone()])) {
             return Ok(());
         }
         // Rare: the first bad row of the whole batch, as Rays::new
         // reports it.
-        Self::new(self.origins, self.directions, self.t_min, self.t_max).map(|_| ())
+        Self::from_coordinates(self.origins, self.directions, self.t_min, self.t_max).map(|_| ())
     }
 
     /// Rays gathered from this batch (so checked already), with its
     /// `t_min` and `t_max`.
-    pub(crate) fn gathered<'b>(&self, origins: &'b [f64], directions: &'b [f64]) -> Rays<'b> {
-        Rays {
+    pub(crate) fn gathered<'b>(&self, origins: &'b [f64], directions: &'b [f64]) -> RayChunk<'b> {
+        RayChunk {
             origins,
             directions,
             t_min: self.t_min,
             t_max: self.t_max,
-            unchecked: false,
+        }
+    }
+
+    /// The batch as the searches read it, where its coordinates are in
+    /// double precision (else its chunks are widened, see `chunk_rays`).
+    pub(crate) fn in_double(&self) -> Option<RayChunk<'a>> {
+        match (self.origins, self.directions) {
+            (Coordinates::F64(origins), Coordinates::F64(directions)) => Some(RayChunk {
+                origins,
+                directions,
+                t_min: self.t_min,
+                t_max: self.t_max,
+            }),
+            _ => None,
         }
     }
 
@@ -163,7 +268,48 @@ impl<'a> Rays<'a> {
 
     /// Always false: a batch holds at least one ray.
     pub fn is_empty(&self) -> bool {
-        self.origins.is_empty()
+        self.origins.len() == 0
+    }
+
+    /// Rays `first..first + count` appended to `origins` and `directions`,
+    /// in double precision.
+    #[inline(always)]
+    pub(crate) fn extend(
+        &self,
+        first: usize,
+        count: usize,
+        origins: &mut Vec<f64>,
+        directions: &mut Vec<f64>,
+    ) {
+        self.origins.extend(first, count, origins);
+        self.directions.extend(first, count, directions);
+    }
+
+    /// Ray `k` as (origin, direction).
+    #[inline]
+    pub fn ray(&self, k: usize) -> (DVec3, DVec3) {
+        (self.origins.point(k), self.directions.point(k))
+    }
+}
+
+/// Rays of a batch as a query's searches read them, a chunk at a time: in
+/// double precision, checked, with the batch's `t_min` and `t_max`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RayChunk<'a> {
+    origins: &'a [f64],
+    directions: &'a [f64],
+    pub t_min: f64,
+    pub t_max: f64,
+}
+
+impl<'a> RayChunk<'a> {
+    /// Ray `k` as (origin, direction).
+    #[inline]
+    pub fn ray(&self, k: usize) -> (DVec3, DVec3) {
+        (
+            DVec3::from_slice(&self.origins[3 * k..]),
+            DVec3::from_slice(&self.directions[3 * k..]),
+        )
     }
 
     /// The least and greatest coordinates, axis by axis, of the origins
@@ -200,64 +346,68 @@ impl<'a> Rays<'a> {
         }
         Some(bounds.map(DVec3::from_array))
     }
-
-    /// The coordinates of rays `first..first + count`: origins,
-    /// directions.
-    #[inline(always)]
-    pub(crate) fn coordinates(&self, first: usize, count: usize) -> (&'a [f64], &'a [f64]) {
-        let rows = 3 * first..3 * (first + count);
-        (&self.origins[rows.clone()], &self.directions[rows])
-    }
-
-    /// Ray `k` as (origin, direction).
-    #[inline]
-    pub fn ray(&self, k: usize) -> (DVec3, DVec3) {
-        (
-            DVec3::from_slice(&self.origins[3 * k..]),
-            DVec3::from_slice(&self.directions[3 * k..]),
-        )
-    }
 }
 
 /// Checks points (`contains`' argument, as `Rays::new` checks origins) and
 /// returns how many there are.
 pub(crate) fn check_points(name: &'static str, points: &[f64]) -> Result<usize, QueryError> {
-    let n = rows(name, points)?;
+    let n = rows(name, points.len())?;
     finite_rows(name, points)?;
     Ok(n)
 }
 
 /// Whether a direction is below `MIN_LENGTH` in every component.
 #[inline]
-fn zero_direction(d: &[f64]) -> bool {
-    (d[0].abs() < MIN_LENGTH) & (d[1].abs() < MIN_LENGTH) & (d[2].abs() < MIN_LENGTH)
+fn zero_direction<T: Coordinate>(d: &[T]) -> bool {
+    (d[0].wide().abs() < MIN_LENGTH)
+        & (d[1].wide().abs() < MIN_LENGTH)
+        & (d[2].wide().abs() < MIN_LENGTH)
 }
 
-fn rows(name: &'static str, values: &[f64]) -> Result<usize, QueryError> {
-    if values.is_empty() {
+/// Whether a row of directions is zero (see [`zero_direction`]): a pass
+/// without an early exit, which the compiler turns into vector code.
+fn any_zero_row<T: Coordinate>(directions: &[T]) -> bool {
+    directions
+        .chunks_exact(3)
+        .fold(false, |seen, d| seen | zero_direction(d))
+}
+
+/// The first zero row of directions, looked for only when there is one.
+fn first_zero_row<T: Coordinate>(directions: &[T]) -> Option<usize> {
+    any_zero_row(directions)
+        .then(|| directions.chunks_exact(3).position(zero_direction))
+        .flatten()
+}
+
+/// Whether every value is finite and within ±`MAX_COORDINATE`.
+fn bounded<T: Coordinate>(values: &[T]) -> bool {
+    // Without an early exit (vector code); NaN fails the comparison as
+    // infinity does.
+    values
+        .iter()
+        .fold(true, |ok, v| ok & (v.wide().abs() <= MAX_COORDINATE))
+}
+
+fn rows(name: &'static str, len: usize) -> Result<usize, QueryError> {
+    if len == 0 {
         return Err(QueryError::invalid(name, "is empty"));
     }
-    if !values.len().is_multiple_of(3) {
+    if !len.is_multiple_of(3) {
         return Err(QueryError::invalid(
             name,
-            format!("{} values are not rows of 3 (x, y, z)", values.len()),
+            format!("{len} values are not rows of 3 (x, y, z)"),
         ));
     }
-    Ok(values.len() / 3)
+    Ok(len / 3)
 }
 
-fn finite_rows(name: &'static str, values: &[f64]) -> Result<(), QueryError> {
-    // A pass without an early exit first (vector code); NaN fails the
-    // comparison as infinity does.
-    if values
-        .iter()
-        .fold(true, |ok, v| ok & (v.abs() <= MAX_COORDINATE))
-    {
+fn finite_rows<T: Coordinate>(name: &'static str, values: &[T]) -> Result<(), QueryError> {
+    if bounded(values) {
         return Ok(());
     }
     match values
         .iter()
-        .position(|v| !v.is_finite() || v.abs() > MAX_COORDINATE)
+        .position(|v| !v.wide().is_finite() || v.wide().abs() > MAX_COORDINATE)
     {
         None => Ok(()),
         Some(i) => Err(QueryError::invalid(

@@ -17,7 +17,7 @@ use rayon::prelude::*;
 
 use super::QueryError;
 use super::order::{Gathered, TraceOrder, chunk_rays, sorted_order, unsort};
-use super::rays::{Crossings, Hits, QueryOptions, Rays};
+use super::rays::{Crossings, Hits, QueryOptions, RayChunk, Rays};
 use super::scene::{Placed, RayScene};
 use super::tiles::{TiledChunk, Tiles};
 use crate::accel::{NodePacket, PACKET, prefetch};
@@ -403,7 +403,7 @@ impl RayScene {
         rays: &Rays,
         order: Option<&TraceOrder>,
         options: &QueryOptions,
-        trace: impl Fn(&Rays, usize, &mut [T]) + Sync,
+        trace: impl Fn(&RayChunk, usize, &mut [T]) + Sync,
     ) -> Result<Vec<T>, QueryError> {
         let mut answers = huge_pages::zeros(T::default(), rays.len());
         let chunk = chunk_len(order);
@@ -540,7 +540,7 @@ impl RayScene {
     /// rules the run out.
     fn runs(
         &self,
-        rays: &Rays,
+        rays: &RayChunk,
         chunk: usize,
         len: usize,
         mut each: impl FnMut(usize, usize, bool),
@@ -565,7 +565,7 @@ impl RayScene {
     /// whose directions share their signs are tested (a camera's or a
     /// lidar's; incoherent ones are told by their first four rays). The
     /// meshes must be untransformed (see [`runs`](Self::runs)).
-    fn span_misses(&self, rays: &Rays, first: usize, n: usize) -> bool {
+    fn span_misses(&self, rays: &RayChunk, first: usize, n: usize) -> bool {
         let Some([origin_lo, origin_hi, direction_lo, direction_hi]) = rays.span(first, n) else {
             return false;
         };
@@ -583,7 +583,7 @@ impl RayScene {
 
     /// The nearest hits of rays `first..first + out.len()` (at most
     /// [`PACKET`]).
-    fn nearest_group(&self, rays: &Rays, first: usize, out: &mut [Nearest], scale: f64) {
+    fn nearest_group(&self, rays: &RayChunk, first: usize, out: &mut [Nearest], scale: f64) {
         let n = out.len();
         let world: [(DVec3, DVec3); PACKET] = gather(rays, first, n);
         let coherent = coherent(&world[..n], scale);
@@ -641,7 +641,7 @@ impl RayScene {
     #[inline(never)]
     fn blocked_group(
         &self,
-        rays: &Rays,
+        rays: &RayChunk,
         chunk: usize,
         first: usize,
         out: &mut [bool],
@@ -711,7 +711,7 @@ impl RayScene {
     /// left in `alone`.
     fn count_group(
         &self,
-        rays: &Rays,
+        rays: &RayChunk,
         chunk: usize,
         first: usize,
         out: &mut [u32],
@@ -858,7 +858,7 @@ impl ByAxes {
 /// repeating it. A loop: `array::from_fn`'s closure stayed a call per ray,
 /// its result passed through memory.
 #[inline(always)]
-fn gather<const N: usize>(rays: &Rays, first: usize, n: usize) -> [(DVec3, DVec3); N] {
+fn gather<const N: usize>(rays: &RayChunk, first: usize, n: usize) -> [(DVec3, DVec3); N] {
     let mut world = [(DVec3::ZERO, DVec3::ZERO); N];
     for (k, ray) in world.iter_mut().enumerate() {
         *ray = rays.ray(first + k.min(n - 1));
