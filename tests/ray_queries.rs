@@ -1110,7 +1110,7 @@ fn bad_arguments_name_themselves() {
         "vertices"
     );
     assert_eq!(
-        argument(scene.add_mesh(&[], &[0, 1, 2], None).unwrap_err()),
+        argument(scene.add_mesh(&[] as &[f64], &[0, 1, 2], None).unwrap_err()),
         "vertices"
     );
     assert_eq!(

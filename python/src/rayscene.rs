@@ -106,14 +106,14 @@ impl RayScene {
         transform: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<u32> {
         let vertices = Coords::of("vertices", vertices)?;
-        let vertices = vertices.doubles()?;
+        let vertices = vertices.coordinates()?;
         let faces = face_indices(faces, vertices.len() / 3)?;
         let transform = transform.map(matrix).transpose()?;
         py.detach(|| {
             let _adding = self.adding.lock().map_err(|_| poisoned())?;
             let mut scene = Scene::clone(self.current()?.as_ref());
             let id = scene
-                .add_mesh(&vertices, &faces, transform)
+                .add_mesh(vertices, &faces, transform)
                 .map_err(query_error)?;
             *self.scene.write().map_err(|_| poisoned())? = Arc::new(scene);
             Ok(id)
@@ -284,9 +284,9 @@ impl RayScene {
     ) -> PyResult<Bound<'py, PyAny>> {
         let scene = self.current()?;
         let p = Coords::of("points", points)?;
-        let p = p.doubles()?;
+        let p = p.coordinates()?;
         let inside = run(py, p.len() / 3, threads_arg(threads)?, |options| {
-            scene.contains(&p, options)
+            scene.contains(p, options)
         })?;
         Ok(inside.into_pyarray(py).into_any())
     }
@@ -379,16 +379,6 @@ impl<'py> Coords<'py> {
                 .map(Coordinates::F32)
                 .map_err(|_| layout_error(name)),
         }
-    }
-
-    /// The coordinates in double precision: float64 in place, float32
-    /// widened into a copy (vertices, which a mesh's build copies anyway,
-    /// and `contains`' points).
-    fn doubles(&self) -> PyResult<std::borrow::Cow<'_, [f64]>> {
-        Ok(match self.coordinates()? {
-            Coordinates::F64(v) => std::borrow::Cow::Borrowed(v),
-            Coordinates::F32(v) => v.iter().map(|&x| f64::from(x)).collect(),
-        })
     }
 }
 

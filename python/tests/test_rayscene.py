@@ -246,6 +246,14 @@ def test_float32_rays_answer_as_their_float64_values():
                 np.testing.assert_array_equal(ref[key], got[key])
     with pytest.raises(ValueError, match="directions: row 1"):
         scene.intersect(np.zeros((2, 3), np.float32), np.array([[0, 0, 1], [np.nan, 0, 1]], np.float32))
+    # Vertices and contains' points in float32, read in place too.
+    v, f = icosphere(2)
+    points = np.random.default_rng(23).uniform(-1.2, 1.2, size=(2000, 3)).astype(np.float32)
+    single = prism.RayScene(v.astype(np.float32), f)
+    double = prism.RayScene(v.astype(np.float32).astype(np.float64), f)
+    inside = double.contains(points.astype(np.float64))
+    np.testing.assert_array_equal(single.contains(points), inside)
+    assert 0 < inside.sum() < len(points)
 
 
 def test_from_file_reads_a_model():

@@ -31,7 +31,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::QueryError;
-use super::rays::{QueryOptions, check_points};
+use super::rays::{Coordinates, QueryOptions, check_points};
 use super::scene::RayScene;
 use super::trace::meets;
 use crate::geometry::Mesh;
@@ -57,15 +57,17 @@ const CHUNK: usize = 256;
 const EPS: f64 = f64::EPSILON / 2.0;
 
 impl RayScene {
-    /// Whether each of `points` (`x, y, z` of each) lies inside one of the
+    /// Whether each of `points` (`x, y, z` of each, in double or single
+    /// precision: [`Coordinates`]) lies inside one of the
     /// scene's meshes, all of which must be closed
     /// ([`QueryError::NotClosed`] otherwise): see the [module](self) for
     /// how it is exact and what a point on the surface gets.
-    pub fn contains(
+    pub fn contains<'p>(
         &self,
-        points: &[f64],
+        points: impl Into<Coordinates<'p>>,
         options: &QueryOptions,
     ) -> Result<Vec<bool>, QueryError> {
+        let points = points.into();
         let n = check_points("points", points)?;
         if let Some(id) = (0..self.meshes.len()).find(|&i| !self.meshes[i].is_closed()) {
             return Err(QueryError::NotClosed { mesh: id as u32 });
@@ -80,7 +82,7 @@ impl RayScene {
                         return Err(QueryError::Cancelled);
                     }
                     for (k, answer) in out.iter_mut().enumerate() {
-                        let p = DVec3::from_slice(&points[3 * (c * CHUNK + k)..]);
+                        let p = points.point(c * CHUNK + k);
                         *answer = self.meshes.iter().any(|placed| {
                             let (p, _) = placed.local(p, DVec3::Z);
                             placed.bounds_contain_local(p) && mesh_contains(&placed.mesh, p)

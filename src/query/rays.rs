@@ -33,6 +33,30 @@ impl<'a> From<&'a [f32]> for Coordinates<'a> {
     }
 }
 
+impl<'a> From<&'a Vec<f64>> for Coordinates<'a> {
+    fn from(values: &'a Vec<f64>) -> Self {
+        Coordinates::F64(values)
+    }
+}
+
+impl<'a> From<&'a Vec<f32>> for Coordinates<'a> {
+    fn from(values: &'a Vec<f32>) -> Self {
+        Coordinates::F32(values)
+    }
+}
+
+impl<'a, const N: usize> From<&'a [f64; N]> for Coordinates<'a> {
+    fn from(values: &'a [f64; N]) -> Self {
+        Coordinates::F64(values)
+    }
+}
+
+impl<'a, const N: usize> From<&'a [f32; N]> for Coordinates<'a> {
+    fn from(values: &'a [f32; N]) -> Self {
+        Coordinates::F32(values)
+    }
+}
+
 /// A coordinate type [`Coordinates`] holds.
 trait Coordinate: Copy + std::fmt::Display {
     fn wide(self) -> f64;
@@ -63,14 +87,19 @@ macro_rules! each_type {
 }
 
 impl Coordinates<'_> {
-    /// Number of values (three a ray).
-    fn len(&self) -> usize {
+    /// Number of values (three a point).
+    pub fn len(&self) -> usize {
         each_type!(*self, v => v.len())
     }
 
-    /// Point `k`.
+    /// Whether there are no values.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Point `k`, widened.
     #[inline(always)]
-    fn point(&self, k: usize) -> DVec3 {
+    pub fn point(&self, k: usize) -> DVec3 {
         match *self {
             Coordinates::F64(v) => DVec3::from_slice(&v[3 * k..]),
             Coordinates::F32(v) => DVec3::new(
@@ -268,7 +297,7 @@ impl<'a> Rays<'a> {
 
     /// Always false: a batch holds at least one ray.
     pub fn is_empty(&self) -> bool {
-        self.origins.len() == 0
+        self.origins.is_empty()
     }
 
     /// Rays `first..first + count` appended to `origins` and `directions`,
@@ -348,11 +377,11 @@ impl<'a> RayChunk<'a> {
     }
 }
 
-/// Checks points (`contains`' argument, as `Rays::new` checks origins) and
-/// returns how many there are.
-pub(crate) fn check_points(name: &'static str, points: &[f64]) -> Result<usize, QueryError> {
+/// Checks points (vertices, `contains`' argument: as `Rays::new` checks
+/// origins) and returns how many there are.
+pub(crate) fn check_points(name: &'static str, points: Coordinates) -> Result<usize, QueryError> {
     let n = rows(name, points.len())?;
-    finite_rows(name, points)?;
+    each_type!(points, v => finite_rows(name, v))?;
     Ok(n)
 }
 

@@ -7,7 +7,7 @@ use std::sync::{Arc, OnceLock};
 use glam::{DAffine3, DMat4, DVec3};
 
 use super::QueryError;
-use super::rays::check_points;
+use super::rays::{Coordinates, check_points};
 use crate::geometry::{Aabb, Mesh, MeshData, MeshError};
 use crate::math::Transform;
 use crate::scene::LoadOptions;
@@ -79,17 +79,19 @@ impl RayScene {
         RayScene::default()
     }
 
-    /// Adds a mesh of `vertices` (`x, y, z` of each) and `faces` (three
+    /// Adds a mesh of `vertices` (`x, y, z` of each, in double or single
+    /// precision: [`Coordinates`]) and `faces` (three
     /// vertex indices per triangle, counter-clockwise seen from the
     /// outside), placed by `transform` (object to world, an affine 4×4
     /// matrix: last row 0, 0, 0, 1), and builds its BVH. Returns its id.
-    pub fn add_mesh(
+    pub fn add_mesh<'v>(
         &mut self,
-        vertices: &[f64],
+        vertices: impl Into<Coordinates<'v>>,
         faces: &[u32],
         transform: Option<DMat4>,
     ) -> Result<u32, QueryError> {
-        check_points("vertices", vertices)?;
+        let vertices = vertices.into();
+        let n = check_points("vertices", vertices)?;
         if faces.is_empty() {
             return Err(QueryError::invalid("faces", "is empty"));
         }
@@ -100,7 +102,7 @@ impl RayScene {
             ));
         }
         let data = MeshData {
-            positions: vertices.chunks_exact(3).map(DVec3::from_slice).collect(),
+            positions: (0..n).map(|k| vertices.point(k)).collect(),
             triangles: faces.chunks_exact(3).map(|f| [f[0], f[1], f[2]]).collect(),
             ..MeshData::default()
         };

@@ -14,9 +14,9 @@ hits equal, bit for bit, the ones Prism's renderer finds. Every query takes
 ``threads=`` (default: one per core) and gives the same answer for any
 count; it runs without the GIL, and Ctrl-C stops a long one
 (``KeyboardInterrupt``). Arrays go in without a copy where they are
-C-contiguous float64 or float32 (rays in float32 are widened ray by ray as
-they are traced; vertices and points in float32 are widened into a copy)
-and come out as NumPy arrays without a copy. Bad shapes, dtypes, NaN or infinite values, indices out of
+C-contiguous float64 or float32 (float32 is widened, exactly, where it is
+read: rays a chunk at a time as they are traced) and come out as NumPy
+arrays without a copy. Bad shapes, dtypes, NaN or infinite values, indices out of
 range and empty arrays raise ``ValueError`` naming the argument.
 
 ``closest_point`` (the nearest point of the surface to a point) is not
