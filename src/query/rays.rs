@@ -9,10 +9,11 @@ use glam::DVec3;
 use super::QueryError;
 use crate::limits::{MAX_COORDINATE, MAX_THREADS, MIN_LENGTH};
 
-/// The origins or the directions of a batch of rays, `x, y, z` of each ray
-/// in turn (a C-contiguous N×3 array): in double precision, or in single
-/// precision, read in place and widened (exactly) ray by ray as the rays
-/// are traced, with no copy of the batch.
+/// Points or vectors, `x, y, z` of each in turn (a C-contiguous N×3
+/// array): a batch's origins or directions, a mesh's vertices,
+/// `contains`' points. In double precision, or in single precision, read
+/// in place and widened (exactly) where they are read: a batch's rays a
+/// chunk at a time as they are traced, with no copy of the batch.
 #[derive(Clone, Copy, Debug)]
 pub enum Coordinates<'a> {
     /// Double precision.
