@@ -10,7 +10,9 @@ mesh: build time (to a first answer: Embree and Open3D build lazily), peak
 memory per triangle (ru_maxrss growth over the build, each engine in a
 process of its own), and rays/s for the nearest hit, any hit and counting
 on 1 and 2 threads (embreex has no thread count: it traces on the calling
-thread, so its 2-thread cells are empty; Embree has no counting query).
+thread, so its 2-thread cells are empty; Embree has no counting query),
+from wall time, and the CPU time of all the process's threads per 1M rays
+(on two threads the work a query costs, whatever its threads waited).
 Each measurement is taken in rounds that alternate the engines; the table
 gives the range over the rounds.
 
@@ -41,6 +43,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import benchenv  # noqa: E402
 
 benchenv.ensure(extra=("open3d-cpu",))
+# NumPy's BLAS threads would spin in the CPU times measured below.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -312,6 +316,7 @@ def main():
         rays = {"coherent": camera_rays(v, args.rays), "incoherent": random_rays(v, args.rays, seed)}
         build = {e: [] for e in ENGINES}
         times = {}
+        cpu = {}
         answers = {}
         for r in range(args.rounds):
             order = ENGINES if r % 2 == 0 else ENGINES[::-1]
@@ -325,12 +330,14 @@ def main():
                 for query in ("closest", "any", "count"):
                     for threads in (1, 2):
                         for e in order:
-                            start = time.perf_counter()
+                            start, start_cpu = time.perf_counter(), time.process_time()
                             out = getattr(built[e], query)(prepared[e], threads)
                             elapsed = time.perf_counter() - start
+                            used = time.process_time() - start_cpu
                             if out is None:
                                 continue
                             times.setdefault((kind, query, threads, e), []).append(elapsed)
+                            cpu.setdefault((kind, query, threads, e), []).append(used)
                             answers[(kind, query, e)] = out
             del built
         # How far the engines agree (float32 engines see the same mesh and rays).
@@ -340,16 +347,17 @@ def main():
             for e, miss in (("embree", lambda x: x >= 0), ("open3d", lambda x: x != 4294967295)):
                 if (kind, "closest", e) in answers:
                     agree[(kind, e)] = float(np.mean(miss(answers[(kind, "closest", e)]) == p))
-        results.append((name, len(f), build, mem, times, agree))
+        results.append((name, len(f), build, mem, times, cpu, agree))
     print()
     print("| mesh | triangles | engine | build s | bytes/tri peak, kept | ray kind | query | Mrays/s 1 thread | Mrays/s 2 threads "
-          "| prism/engine 1 thread | prism/engine 2 threads |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
-    for name, tris, build, mem, times, agree in results:
+          "| prism/engine 1 thread | prism/engine 2 threads | CPU s per 1M rays, 1 thread | CPU s per 1M rays, 2 threads "
+          "| prism/engine by CPU, 2 threads |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for name, tris, build, mem, times, cpu, agree in results:
         for kind in ("coherent", "incoherent"):
             for query in ("closest", "any", "count"):
                 for e in ENGINES:
-                    cells, ratios = [], []
+                    cells, ratios, cpu_cells = [], [], []
                     for threads in (1, 2):
                         ts = times.get((kind, query, threads, e), [])
                         cells.append(rng_range([args.rays / t / 1e6 for t in ts]))
@@ -358,11 +366,17 @@ def main():
                         ps = times.get((kind, query, threads, "prism"), [])
                         ratios.append("-" if e == "prism" or not ts else
                                       rng_range([t / p for p, t in zip(ps, ts)]) + "x")
+                        # CPU time of every thread of the process, per 1M rays.
+                        cs = cpu.get((kind, query, threads, e), [])
+                        cpu_cells.append(rng_range([c * 1e6 / args.rays for c in cs], fmt="{:.3f}"))
                     if cells == ["-", "-"]:
                         continue
+                    # Two threads at equal work: this engine's CPU over Prism's.
+                    cs, ps = cpu.get((kind, query, 2, e), []), cpu.get((kind, query, 2, "prism"), [])
+                    cpu_ratio = "-" if e == "prism" or not cs else rng_range([c / p for p, c in zip(ps, cs)]) + "x"
                     print(f"| {name} | {tris:,} | {e} | {rng_range(build[e], fmt='{:.3f}')} | "
                           f"{mem[e][0]:.0f}, {mem[e][1]:.0f} | {kind} | {query} | {cells[0]} | {cells[1]} "
-                          f"| {ratios[0]} | {ratios[1]} |")
+                          f"| {ratios[0]} | {ratios[1]} | {cpu_cells[0]} | {cpu_cells[1]} | {cpu_ratio} |")
         print(f"hit/miss agreement with prism on {name}: " +
               ", ".join(f"{k[1]} {k[0]} {v:.6f}" for k, v in agree.items()))
     if args.watertight_rays == 0:
