@@ -7,6 +7,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 use glam::DVec3;
 
 use super::QueryError;
+use super::tiles::COLUMNS;
 use crate::limits::{MAX_COORDINATE, MAX_THREADS, MIN_LENGTH};
 
 /// Points or vectors, `x, y, z` of each in turn (a C-contiguous N×3
@@ -116,9 +117,9 @@ impl Coordinates<'_> {
     fn extend(&self, first: usize, count: usize, out: &mut Vec<f64>) {
         let rows = 3 * first..3 * (first + count);
         match *self {
-            // A tile's row (four rays) as one copy of known size: a few
-            // vector moves rather than a call.
-            Coordinates::F64(v) => match <&[f64; 12]>::try_from(&v[rows.clone()]) {
+            // A tile's row as one copy of known size: a few vector moves
+            // rather than a call.
+            Coordinates::F64(v) => match <&[f64; 3 * COLUMNS]>::try_from(&v[rows.clone()]) {
                 Ok(tile) => out.extend_from_slice(tile),
                 Err(_) => out.extend_from_slice(&v[rows]),
             },

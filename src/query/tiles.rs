@@ -23,7 +23,7 @@ use super::rays::Rays;
 use crate::accel::PACKET;
 
 /// Columns of a tile; its rows are two, so that a tile is a packet.
-const COLUMNS: usize = 4;
+pub(crate) const COLUMNS: usize = 4;
 
 /// Rows of a tile.
 const ROWS: usize = PACKET / COLUMNS;
