@@ -44,7 +44,7 @@ mod trace;
 
 use thiserror::Error;
 
-pub use rays::{Coordinates, Crossings, Hits, QueryOptions, Rays};
+pub use rays::{Coordinates, Crossings, Hits, HitsMut, QueryOptions, Rays};
 pub use scene::RayScene;
 
 /// Why a ray scene or a query could not be made.

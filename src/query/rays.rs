@@ -543,6 +543,46 @@ pub struct Hits {
     pub normal: Vec<f64>,
 }
 
+impl Hits {
+    /// The arrays as [`HitsMut`], for [`RayScene::intersect_into`].
+    ///
+    /// [`RayScene::intersect_into`]: super::RayScene::intersect_into
+    pub fn as_mut(&mut self) -> HitsMut<'_> {
+        HitsMut {
+            t: &mut self.t,
+            mesh_id: &mut self.mesh_id,
+            triangle_id: &mut self.triangle_id,
+            u: &mut self.u,
+            v: &mut self.v,
+            normal: &mut self.normal,
+        }
+    }
+}
+
+/// Arrays of the caller's for [`RayScene::intersect_into`] to write the
+/// nearest hits into, as [`Hits`] holds them: one entry per ray (the
+/// normal three), every entry written, whatever it held before. A caller
+/// that queries again and again can so reuse one set of arrays: memory
+/// fresh from the system is faulted in at its first write, which for a
+/// million rays' answers (64 MB) can take longer than the query.
+///
+/// [`RayScene::intersect_into`]: super::RayScene::intersect_into
+#[derive(Debug)]
+pub struct HitsMut<'a> {
+    /// See [`Hits::t`].
+    pub t: &'a mut [f64],
+    /// See [`Hits::mesh_id`].
+    pub mesh_id: &'a mut [i64],
+    /// See [`Hits::triangle_id`].
+    pub triangle_id: &'a mut [i64],
+    /// See [`Hits::u`].
+    pub u: &'a mut [f64],
+    /// See [`Hits::v`].
+    pub v: &'a mut [f64],
+    /// See [`Hits::normal`]: `x, y, z` per ray.
+    pub normal: &'a mut [f64],
+}
+
 /// Every hit of each ray, sorted by t (ties by mesh id, then triangle),
 /// as flat arrays: ray k's hits are entries `offsets[k]..offsets[k + 1]`.
 /// A ray through an edge or vertex hits each triangle that holds it (the

@@ -12,12 +12,14 @@
 //! scattered rays through a mesh beyond the cache is sorted first (see
 //! `query::order`), its answers put back in the rays' order.
 
+use std::sync::{Mutex, PoisonError};
+
 use glam::DVec3;
 use rayon::prelude::*;
 
 use super::QueryError;
 use super::order::{Gathered, TraceOrder, chunk_rays, sorted_order, unsort};
-use super::rays::{Crossings, Hits, QueryOptions, RayChunk, Rays};
+use super::rays::{Crossings, Hits, HitsMut, QueryOptions, RayChunk, Rays};
 use super::scene::{Placed, RayScene};
 use super::tiles::{TiledChunk, Tiles};
 use crate::accel::{NodePacket, PACKET, prefetch};
@@ -105,9 +107,9 @@ trait AnswerSink {
     }
 }
 
-impl AnswerSink for Vec<Answer> {
+impl AnswerSink for &mut [Answer] {
     fn len(&self) -> usize {
-        self.as_slice().len()
+        <[Answer]>::len(self)
     }
     #[inline(always)]
     fn put(&mut self, i: usize, answer: &Answer) {
@@ -115,7 +117,18 @@ impl AnswerSink for Vec<Answer> {
     }
 }
 
-/// A chunk of the arrays of [`Hits`], which start zeroed.
+/// The waiting answers of the last sorted nearest-hit query (one 64-byte
+/// record a ray), kept for the next: memory new to the process is
+/// faulted in at its first write, 64 MB for a million rays, which took a
+/// tenth of such a query's time (15 Ki faults a query) when each chunk
+/// wrote into a vector of its own.
+static WAITING: Mutex<Vec<Answer>> = Mutex::new(Vec::new());
+
+/// Waiting answers kept at most between queries (128 MiB); a larger
+/// query's are let go.
+const KEEP_WAITING: usize = 1 << 21;
+
+/// A chunk of the arrays of [`HitsMut`].
 struct HitsChunk<'h> {
     t: &'h mut [f64],
     mesh_id: &'h mut [i64],
@@ -138,11 +151,15 @@ impl AnswerSink for HitsChunk<'_> {
         self.v[i] = a.v;
         self.normal[3 * i..3 * i + 3].copy_from_slice(&a.normal);
     }
-    /// The arrays start zeroed: u, v and the normal stay so.
+    /// The arrays may hold anything (a caller's, reused): every field
+    /// is written.
     fn misses(&mut self, range: std::ops::Range<usize>) {
         self.t[range.clone()].fill(f64::INFINITY);
         self.mesh_id[range.clone()].fill(-1);
-        self.triangle_id[range].fill(-1);
+        self.triangle_id[range.clone()].fill(-1);
+        self.u[range.clone()].fill(0.0);
+        self.v[range.clone()].fill(0.0);
+        self.normal[3 * range.start..3 * range.end].fill(0.0);
     }
 }
 
@@ -160,25 +177,11 @@ impl RayScene {
     /// hit at the same t, the one first in its mesh's face list, and of
     /// meshes, the lowest id.
     pub fn intersect(&self, rays: &Rays, options: &QueryOptions) -> Result<Hits, QueryError> {
-        let order = self.trace_order(rays, options)?;
-        self.intersect_in(rays, order.as_ref(), options)
-    }
-
-    /// [`intersect`](Self::intersect) with the rays traced in `order`, or
-    /// as given.
-    fn intersect_in(
-        &self,
-        rays: &Rays,
-        order: Option<&TraceOrder>,
-        options: &QueryOptions,
-    ) -> Result<Hits, QueryError> {
         let n = rays.len();
-        let scale = self.bounds().diagonal();
-        let chunk = chunk_len(order);
-        // Zeros, which the allocator takes from the system as they are
-        // (no pass over them here): each worker faults in and writes its
-        // own chunks, a miss's t and ids included, 2 MiB at a time where
-        // the memory is fresh from the system (`huge_pages::zeros`).
+        // Zeros, which the allocator takes from the system as they are (no
+        // pass over them here): each worker faults in and writes its own
+        // chunks, 2 MiB at a time where the memory is fresh from the
+        // system (`huge_pages::zeros`).
         let mut hits = Hits {
             t: huge_pages::zeros(0.0, n),
             mesh_id: huge_pages::zeros(0, n),
@@ -187,14 +190,63 @@ impl RayScene {
             v: huge_pages::zeros(0.0, n),
             normal: huge_pages::zeros(0.0, 3 * n),
         };
-        let Hits {
+        self.intersect_into(rays, hits.as_mut(), options)?;
+        Ok(hits)
+    }
+
+    /// [`intersect`](Self::intersect) into the caller's arrays, each of
+    /// one entry per ray (`normal` three); each entry is written, a miss's
+    /// too. Arrays of other lengths are an `Invalid` error naming the
+    /// array (`t`, `mesh_id`, ...), and nothing is written.
+    pub fn intersect_into(
+        &self,
+        rays: &Rays,
+        out: HitsMut<'_>,
+        options: &QueryOptions,
+    ) -> Result<(), QueryError> {
+        let n = rays.len();
+        for (name, len, per_ray) in [
+            ("t", out.t.len(), 1),
+            ("mesh_id", out.mesh_id.len(), 1),
+            ("triangle_id", out.triangle_id.len(), 1),
+            ("u", out.u.len(), 1),
+            ("v", out.v.len(), 1),
+            ("normal", out.normal.len(), 3),
+        ] {
+            if len != per_ray * n {
+                return Err(QueryError::invalid(
+                    name,
+                    format!(
+                        "must hold {} entries for {n} rays, holds {len}",
+                        per_ray * n
+                    ),
+                ));
+            }
+        }
+        let order = self.trace_order(rays, options)?;
+        self.intersect_in(rays, order.as_ref(), out, options)
+    }
+
+    /// [`intersect_into`](Self::intersect_into) with the rays traced in
+    /// `order`, or as given.
+    fn intersect_in(
+        &self,
+        rays: &Rays,
+        order: Option<&TraceOrder>,
+        out: HitsMut<'_>,
+        options: &QueryOptions,
+    ) -> Result<(), QueryError> {
+        let n = rays.len();
+        let scale = self.bounds().diagonal();
+        let chunk = chunk_len(order);
+        let HitsMut {
             t,
             mesh_id,
             triangle_id,
             u,
             v,
             normal,
-        } = &mut hits;
+        } = out;
         let chunks = t
             .par_chunks_mut(chunk)
             .zip(mesh_id.par_chunks_mut(chunk))
@@ -231,37 +283,47 @@ impl RayScene {
                         }
                     })
                 })?;
-                return Ok(hits);
+                return Ok(());
             }
         };
+        // Each chunk's answers wait in its piece of one vector of whole
+        // answers, kept from query to query (see `WAITING`), then each
+        // ray's is read back from its slot: one cache line a ray.
+        let kept = std::mem::take(&mut *WAITING.lock().unwrap_or_else(PoisonError::into_inner));
+        let mut waiting = kept;
         options.run(|| {
-            // Each chunk's answers in one vector of whole answers (on the
-            // worker's heap, reused from query to query), then each ray's
-            // read back from its slot: one cache line a ray.
-            let sorted = (0..n.div_ceil(CHUNK))
-                .into_par_iter()
-                .map(|c| {
-                    let mut out = vec![NO_HIT; CHUNK.min(n - c * CHUNK)];
-                    self.nearest_chunk(rays, order, c * CHUNK, &mut out, scale, options)?;
-                    Ok(out)
-                })
-                .collect::<Result<Vec<_>, QueryError>>()?;
+            if waiting.len() < n {
+                // Written by the workers, each its own part.
+                (0..n)
+                    .into_par_iter()
+                    .map(|_| NO_HIT)
+                    .collect_into_vec(&mut waiting);
+            }
+            let waiting = &mut waiting[..n];
+            waiting
+                .par_chunks_mut(CHUNK)
+                .enumerate()
+                .try_for_each(|(c, mut out)| {
+                    self.nearest_chunk(rays, order, c * CHUNK, &mut out, scale, options)
+                })?;
+            let waiting = &*waiting;
             chunks
                 .zip(slot.par_chunks(CHUNK))
                 .for_each(|((_, mut out), slots)| {
                     for (i, &s) in slots.iter().enumerate() {
                         // The answers' random reads, asked for ahead.
                         if let Some(&ahead) = slots.get(i + UNSORT_AHEAD) {
-                            let ahead = ahead as usize;
-                            prefetch(&sorted[ahead / CHUNK][ahead % CHUNK]);
+                            prefetch(&waiting[ahead as usize]);
                         }
-                        let s = s as usize;
-                        out.put(i, &sorted[s / CHUNK][s % CHUNK]);
+                        out.put(i, &waiting[s as usize]);
                     }
                 });
             Ok(())
         })?;
-        Ok(hits)
+        if waiting.len() <= KEEP_WAITING {
+            *WAITING.lock().unwrap_or_else(PoisonError::into_inner) = waiting;
+        }
+        Ok(())
     }
 
     /// The nearest hits of the chunk of `out.len()` rays from `first` as
@@ -963,6 +1025,27 @@ mod tests {
         }
     }
 
+    /// `intersect_in` into arrays that start as garbage (a reused set's
+    /// old answers), so an entry left unwritten shows.
+    fn nearest_in(
+        scene: &RayScene,
+        rays: &Rays,
+        order: Option<&TraceOrder>,
+        options: &QueryOptions,
+    ) -> Result<Hits, QueryError> {
+        let n = rays.len();
+        let mut hits = Hits {
+            t: vec![-7.0; n],
+            mesh_id: vec![7; n],
+            triangle_id: vec![7; n],
+            u: vec![f64::NAN; n],
+            v: vec![7.0; n],
+            normal: vec![f64::NAN; 3 * n],
+        };
+        scene.intersect_in(rays, order, hits.as_mut(), options)?;
+        Ok(hits)
+    }
+
     #[test]
     fn rays_in_a_sorted_order_answer_as_given() {
         let mut rng = PixelRng::new(11, 0, 0);
@@ -989,10 +1072,9 @@ mod tests {
         );
         let order = TraceOrder::Sorted(sorted);
         for n in [1, 2] {
-            let sorted = scene
-                .intersect_in(&rays, Some(&order), &threads(n))
-                .unwrap();
-            let given = scene.intersect_in(&rays, None, &threads(n)).unwrap();
+            let sorted = nearest_in(&scene, &rays, Some(&order), &threads(n)).unwrap();
+            let given = nearest_in(&scene, &rays, None, &threads(n)).unwrap();
+            assert!(given == scene.intersect(&rays, &threads(n)).unwrap());
             assert!(sorted == given);
             assert!(given.mesh_id.iter().filter(|&&m| m == 1).count() > 1000);
             assert_eq!(
@@ -1003,6 +1085,48 @@ mod tests {
                 scene.count_in(&rays, Some(&order), &threads(n)).unwrap(),
                 scene.count_in(&rays, None, &threads(n)).unwrap()
             );
+        }
+        // Fewer other rays after those: the waiting answers kept from the
+        // query before (see `WAITING`) are all written again.
+        let (o, d) = scattered(&mut rng, 17_000);
+        let rays = Rays::new(&o, &d, 0.0, 2.5).unwrap();
+        let order = sorted_order(&rays, scene.bounds(), &threads(1)).unwrap();
+        let order = TraceOrder::Sorted(order.expect("scattered rays are sorted"));
+        for n in [2, 1] {
+            let sorted = nearest_in(&scene, &rays, Some(&order), &threads(n)).unwrap();
+            assert!(sorted == nearest_in(&scene, &rays, None, &threads(n)).unwrap());
+        }
+    }
+
+    #[test]
+    fn answers_into_arrays_of_the_wrong_length_are_refused_untouched() {
+        let mut rng = PixelRng::new(13, 0, 0);
+        let mut scene = RayScene::new();
+        let (v, f) = soup(&mut rng, 50);
+        scene.add_mesh(&v, &f, None).unwrap();
+        let (o, d) = scattered(&mut rng, 100);
+        let rays = Rays::new(&o, &d, 0.0, f64::INFINITY).unwrap();
+        let hits = scene.intersect(&rays, &threads(1)).unwrap();
+        for (k, name) in ["t", "mesh_id", "triangle_id", "u", "v", "normal"]
+            .into_iter()
+            .enumerate()
+        {
+            let mut out = hits.clone();
+            out.t.fill(-1.0);
+            match k {
+                0 => out.t.push(0.0),
+                1 => out.mesh_id.pop().map(drop).unwrap(),
+                2 => out.triangle_id.clear(),
+                3 => out.u.push(0.0),
+                4 => out.v.pop().map(drop).unwrap(),
+                _ => out.normal.truncate(100),
+            }
+            let e = scene.intersect_into(&rays, out.as_mut(), &threads(1));
+            assert!(
+                matches!(e, Err(QueryError::Invalid { argument, .. }) if argument == name),
+                "{name}: {e:?}"
+            );
+            assert!(out.t.iter().all(|&t| t == -1.0 || t == 0.0));
         }
     }
 
@@ -1094,8 +1218,9 @@ mod tests {
             let order = scene.trace_order(&rays, &threads(1)).unwrap();
             assert!(matches!(order, Some(TraceOrder::Tiled(_))), "{width}");
             for t in [1, 2] {
-                let tiled = scene.intersect_in(&rays, order.as_ref(), &threads(t));
-                let given = scene.intersect_in(&rays, None, &threads(t)).unwrap();
+                let tiled = nearest_in(&scene, &rays, order.as_ref(), &threads(t));
+                let given = nearest_in(&scene, &rays, None, &threads(t)).unwrap();
+                assert!(given == scene.intersect(&rays, &threads(t)).unwrap());
                 assert!(tiled.unwrap() == given);
                 let hit = given.t.iter().filter(|t| t.is_finite()).count();
                 assert!(hit > n / 10 && hit < n * 9 / 10, "{hit} of {n}");
