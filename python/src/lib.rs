@@ -32,6 +32,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 
 mod rayscene;
+mod recycle;
 
 create_exception!(
     _prism,

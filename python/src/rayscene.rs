@@ -1,11 +1,12 @@
 //! `prism._prism.RayScene`: the library's ray queries (`prism::query`) on
-//! NumPy arrays. Coordinates come in as C-contiguous (N, 3) float64 arrays
-//! read in place (float32 ones converted; the package `prism` makes other
-//! layouts contiguous first); answers go out as NumPy arrays that take over
-//! the library's vectors without a copy. A long query runs on a thread of
-//! its own while the caller waits without the GIL, taking it every 50 ms
-//! to let Python handle signals: Ctrl-C raises the cancel flag and the
-//! query stops at its next batch of rays.
+//! NumPy arrays. Coordinates come in as C-contiguous (N, 3) float64 or
+//! float32 arrays read in place (the package `prism` makes other layouts
+//! contiguous first). Nearest hits are written into arrays the scene
+//! keeps for reuse (see `recycle`); other answers go out as NumPy arrays
+//! that take over the library's vectors without a copy. A long query runs
+//! on a thread of its own while the caller waits without the GIL, taking
+//! it every 50 ms to let Python handle signals: Ctrl-C raises the cancel
+//! flag and the query stops at its next batch of rays.
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -13,13 +14,16 @@ use std::sync::{Arc, Mutex, RwLock, mpsc};
 use std::time::Duration;
 
 use glam::DMat4;
+use numpy::ndarray::{Ix1, Ix2};
 use numpy::{IntoPyArray, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
 use prism::limits;
-use prism::query::{Coordinates, QueryError, QueryOptions, RayScene as Scene, Rays};
+use prism::query::{Coordinates, HitsMut, QueryError, QueryOptions, RayScene as Scene, Rays};
 use prism::scene::LoadOptions;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+
+use crate::recycle::Recycled;
 
 /// Queries of this many rays or points or fewer run on the calling thread
 /// (without the GIL, but without checking for signals): a thread of their
@@ -34,6 +38,8 @@ pub struct RayScene {
     scene: RwLock<Arc<Scene>>,
     /// Serialises adding meshes.
     adding: Mutex<()>,
+    /// The arrays of the last answers, written again once let go.
+    recycled: Recycled,
 }
 
 impl RayScene {
@@ -91,6 +97,7 @@ impl RayScene {
         RayScene {
             scene: RwLock::new(Arc::new(Scene::new())),
             adding: Mutex::new(()),
+            recycled: Recycled::default(),
         }
     }
 
@@ -178,22 +185,65 @@ impl RayScene {
         tmax: f64,
         threads: Option<i64>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let (hits, n) = self.query_rays(
-            py,
-            origins,
-            directions,
-            tmin,
-            tmax,
-            threads,
-            |scene, rays, options| scene.intersect(rays, options),
-        )?;
+        // The answers go into arrays of the scene's own, reused once let
+        // go (see `recycle`), whose size the origins' rows give.
+        let n = Coords::of("origins", origins)?.rows();
+        let kept = &self.recycled;
+        let arrays = [
+            kept.array::<f64, _>(py, Ix1(n)),
+            kept.array::<f64, _>(py, Ix1(n)),
+            kept.array::<f64, _>(py, Ix1(n)),
+        ];
+        let ids = [
+            kept.array::<i64, _>(py, Ix1(n)),
+            kept.array::<i64, _>(py, Ix1(n)),
+        ];
+        let normal = kept.array::<f64, _>(py, Ix2(n, 3));
+        {
+            let borrow = |e: numpy::BorrowError| PyRuntimeError::new_err(e.to_string());
+            let slice = |e: numpy::NotContiguousError| PyRuntimeError::new_err(e.to_string());
+            let [t, u, v] = arrays.each_ref().map(|a| a.try_readwrite());
+            let [mesh_id, triangle_id] = ids.each_ref().map(|a| a.try_readwrite());
+            let (mut t, mut u, mut v) =
+                (t.map_err(borrow)?, u.map_err(borrow)?, v.map_err(borrow)?);
+            let mut mesh_id = mesh_id.map_err(borrow)?;
+            let mut triangle_id = triangle_id.map_err(borrow)?;
+            let mut normal = normal.try_readwrite().map_err(borrow)?;
+            let out = HitsMut {
+                t: t.as_slice_mut().map_err(slice)?,
+                mesh_id: mesh_id.as_slice_mut().map_err(slice)?,
+                triangle_id: triangle_id.as_slice_mut().map_err(slice)?,
+                u: u.as_slice_mut().map_err(slice)?,
+                v: v.as_slice_mut().map_err(slice)?,
+                normal: normal.as_slice_mut().map_err(slice)?,
+            };
+            self.query_rays(
+                py,
+                origins,
+                directions,
+                tmin,
+                tmax,
+                threads,
+                move |scene, rays, options| scene.intersect_into(rays, out, options),
+            )?;
+        }
+        let [t, u, v] = arrays;
+        let [mesh_id, triangle_id] = ids;
         let out = PyDict::new(py);
-        out.set_item("t", hits.t.into_pyarray(py))?;
-        out.set_item("mesh_id", hits.mesh_id.into_pyarray(py))?;
-        out.set_item("triangle_id", hits.triangle_id.into_pyarray(py))?;
-        out.set_item("u", hits.u.into_pyarray(py))?;
-        out.set_item("v", hits.v.into_pyarray(py))?;
-        out.set_item("normal", hits.normal.into_pyarray(py).reshape([n, 3])?)?;
+        out.set_item("t", &t)?;
+        out.set_item("mesh_id", &mesh_id)?;
+        out.set_item("triangle_id", &triangle_id)?;
+        out.set_item("u", &u)?;
+        out.set_item("v", &v)?;
+        out.set_item("normal", &normal)?;
+        kept.keep([
+            t.into_any(),
+            mesh_id.into_any(),
+            triangle_id.into_any(),
+            u.into_any(),
+            v.into_any(),
+            normal.into_any(),
+        ]);
         Ok(out)
     }
 
@@ -363,6 +413,14 @@ impl<'py> Coords<'py> {
     }
 
     /// The coordinates in place, in their own precision.
+    /// The number of rows: points or rays.
+    fn rows(&self) -> usize {
+        match self {
+            Coords::Double(_, a) => a.shape()[0],
+            Coords::Single(_, a) => a.shape()[0],
+        }
+    }
+
     fn coordinates(&self) -> PyResult<Coordinates<'_>> {
         let layout_error = |name: &str| {
             PyValueError::new_err(format!(

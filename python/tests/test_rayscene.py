@@ -122,6 +122,47 @@ def test_queries_equal_brute_force():
         assert hit > 50
 
 
+def test_answers_let_go_are_written_again_and_kept_ones_never():
+    """A scene writes a query's answers into the arrays of an earlier one
+    that nothing holds any more (so a loop of large queries does not
+    fault in new memory each time); arrays the caller keeps, or views of
+    them, are never written."""
+    v, f = random_soup(200, 3)
+    scene = prism.RayScene(v, f)
+    (o1, d1), (o2, d2) = rays(500, 4), rays(500, 5)
+    fresh = prism.RayScene(v, f)
+    first = scene.intersect(o1, d1)
+    kept = {k: a.copy() for k, a in first.items()}
+    address = {k: a.__array_interface__["data"][0] for k, a in first.items()}
+    # Held by the caller: not written.
+    second = scene.intersect(o2, d2)
+    for k, a in first.items():
+        np.testing.assert_array_equal(a, kept[k])
+        assert second[k].__array_interface__["data"][0] != address[k]
+    del a  # the loop's name for the last array holds it too
+    # Let go: written again, every entry (misses included) the answer of
+    # the new rays.
+    del first
+    third = scene.intersect(o1[::-1].copy(), d1[::-1].copy())
+    assert {k: a.__array_interface__["data"][0] for k, a in third.items()} == address
+    want = fresh.intersect(o1[::-1].copy(), d1[::-1].copy())
+    assert np.isinf(want["t"]).any() and np.isfinite(want["t"]).any()
+    for k in want:
+        np.testing.assert_array_equal(third[k], want[k])
+    # A view keeps its array from being written.
+    view = third["t"][::2]
+    snapshot = view.copy()
+    del third
+    scene.intersect(o2, d2)
+    np.testing.assert_array_equal(view, snapshot)
+    # Read-only arrays let go are left alone too.
+    second["u"].flags.writeable = False
+    del second
+    again = scene.intersect(o2, d2)
+    for k, a in fresh.intersect(o2, d2).items():
+        np.testing.assert_array_equal(again[k], a)
+
+
 def test_meshes_ids_and_transforms():
     v, f = random_soup(100, 3)
     m = np.array([[0, -2, 0, 0.5], [1, 0, 0, 0.1], [0, 0, 1.5, -0.2], [0, 0, 0, 1]], float)

@@ -186,7 +186,12 @@ class RayScene:
         (barycentric: the hit is ``(1-u-v)*a + u*b + v*c``) and ``normal``
         ((N, 3), the unit geometric normal by the right-hand rule of the
         face, zero for a miss). Of triangles hit at the same t, the first in
-        its mesh's faces wins, and of meshes, the lowest id."""
+        its mesh's faces wins, and of meshes, the lowest id.
+
+        The arrays are the caller's to keep and change. Once nothing refers
+        to them any more (no name, view or memoryview), the scene may write
+        a later query's answers into them rather than into new memory; the
+        last 16 are kept for that while the scene lives."""
         return self._scene.intersect(*self._rays(origins, directions, tmin, tmax, threads))
 
     def occluded(self, origins: ArrayLike, directions: ArrayLike, tmin: float = 0.0,
