@@ -128,6 +128,16 @@ static WAITING: Mutex<Vec<Answer>> = Mutex::new(Vec::new());
 /// query's are let go.
 const KEEP_WAITING: usize = 1 << 21;
 
+/// What the answer arrays hold before a query writes them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Written {
+    /// Zeros (`intersect`'s own arrays): a miss's u, v and normal are so
+    /// already.
+    Zeros,
+    /// Anything (a caller's, reused): every field is written.
+    Anything,
+}
+
 /// A chunk of the arrays of [`HitsMut`].
 struct HitsChunk<'h> {
     t: &'h mut [f64],
@@ -136,6 +146,7 @@ struct HitsChunk<'h> {
     u: &'h mut [f64],
     v: &'h mut [f64],
     normal: &'h mut [f64],
+    held: Written,
 }
 
 impl AnswerSink for HitsChunk<'_> {
@@ -151,15 +162,18 @@ impl AnswerSink for HitsChunk<'_> {
         self.v[i] = a.v;
         self.normal[3 * i..3 * i + 3].copy_from_slice(&a.normal);
     }
-    /// The arrays may hold anything (a caller's, reused): every field
-    /// is written.
+    #[inline(always)]
     fn misses(&mut self, range: std::ops::Range<usize>) {
-        self.t[range.clone()].fill(f64::INFINITY);
-        self.mesh_id[range.clone()].fill(-1);
-        self.triangle_id[range.clone()].fill(-1);
-        self.u[range.clone()].fill(0.0);
-        self.v[range.clone()].fill(0.0);
-        self.normal[3 * range.start..3 * range.end].fill(0.0);
+        for i in range {
+            match self.held {
+                Written::Zeros => {
+                    self.t[i] = f64::INFINITY;
+                    self.mesh_id[i] = -1;
+                    self.triangle_id[i] = -1;
+                }
+                Written::Anything => self.put(i, &NO_HIT),
+            }
+        }
     }
 }
 
@@ -190,7 +204,8 @@ impl RayScene {
             v: huge_pages::zeros(0.0, n),
             normal: huge_pages::zeros(0.0, 3 * n),
         };
-        self.intersect_into(rays, hits.as_mut(), options)?;
+        let order = self.trace_order(rays, options)?;
+        self.intersect_in(rays, order.as_ref(), hits.as_mut(), Written::Zeros, options)?;
         Ok(hits)
     }
 
@@ -224,7 +239,7 @@ impl RayScene {
             }
         }
         let order = self.trace_order(rays, options)?;
-        self.intersect_in(rays, order.as_ref(), out, options)
+        self.intersect_in(rays, order.as_ref(), out, Written::Anything, options)
     }
 
     /// [`intersect_into`](Self::intersect_into) with the rays traced in
@@ -234,6 +249,7 @@ impl RayScene {
         rays: &Rays,
         order: Option<&TraceOrder>,
         out: HitsMut<'_>,
+        held: Written,
         options: &QueryOptions,
     ) -> Result<(), QueryError> {
         let n = rays.len();
@@ -262,6 +278,7 @@ impl RayScene {
                     u,
                     v,
                     normal,
+                    held,
                 },
             )
             .enumerate();
@@ -1042,7 +1059,7 @@ mod tests {
             v: vec![7.0; n],
             normal: vec![f64::NAN; 3 * n],
         };
-        scene.intersect_in(rays, order, hits.as_mut(), options)?;
+        scene.intersect_in(rays, order, hits.as_mut(), Written::Anything, options)?;
         Ok(hits)
     }
 
