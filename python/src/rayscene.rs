@@ -1,8 +1,8 @@
 //! `prism._prism.RayScene`: the library's ray queries (`prism::query`) on
 //! NumPy arrays. Coordinates come in as C-contiguous (N, 3) float64 or
 //! float32 arrays read in place (the package `prism` makes other layouts
-//! contiguous first). Nearest hits are written into arrays the scene
-//! keeps for reuse (see `recycle`); other answers go out as NumPy arrays
+//! contiguous first). Nearest hits are written into arrays kept for
+//! reuse (see `recycle`); other answers go out as NumPy arrays
 //! that take over the library's vectors without a copy. A long query runs
 //! on a thread of its own while the caller waits without the GIL, taking
 //! it every 50 ms to let Python handle signals: Ctrl-C raises the cancel
@@ -23,7 +23,7 @@ use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::recycle::Recycled;
+use crate::recycle;
 
 /// Queries of this many rays or points or fewer run on the calling thread
 /// (without the GIL, but without checking for signals): a thread of their
@@ -38,8 +38,6 @@ pub struct RayScene {
     scene: RwLock<Arc<Scene>>,
     /// Serialises adding meshes.
     adding: Mutex<()>,
-    /// The arrays of the last answers, written again once let go.
-    recycled: Recycled,
 }
 
 impl RayScene {
@@ -97,7 +95,6 @@ impl RayScene {
         RayScene {
             scene: RwLock::new(Arc::new(Scene::new())),
             adding: Mutex::new(()),
-            recycled: Recycled::default(),
         }
     }
 
@@ -185,20 +182,19 @@ impl RayScene {
         tmax: f64,
         threads: Option<i64>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        // The answers go into arrays of the scene's own, reused once let
-        // go (see `recycle`), whose size the origins' rows give.
+        // The answers go into arrays reused once let go (see `recycle`),
+        // of the size the origins' rows give.
         let n = Coords::of("origins", origins)?.rows();
-        let kept = &self.recycled;
         let arrays = [
-            kept.array::<f64, _>(py, Ix1(n)),
-            kept.array::<f64, _>(py, Ix1(n)),
-            kept.array::<f64, _>(py, Ix1(n)),
+            recycle::array::<f64, _>(py, Ix1(n)),
+            recycle::array::<f64, _>(py, Ix1(n)),
+            recycle::array::<f64, _>(py, Ix1(n)),
         ];
         let ids = [
-            kept.array::<i64, _>(py, Ix1(n)),
-            kept.array::<i64, _>(py, Ix1(n)),
+            recycle::array::<i64, _>(py, Ix1(n)),
+            recycle::array::<i64, _>(py, Ix1(n)),
         ];
-        let normal = kept.array::<f64, _>(py, Ix2(n, 3));
+        let normal = recycle::array::<f64, _>(py, Ix2(n, 3));
         {
             let borrow = |e: numpy::BorrowError| PyRuntimeError::new_err(e.to_string());
             let slice = |e: numpy::NotContiguousError| PyRuntimeError::new_err(e.to_string());
@@ -236,7 +232,7 @@ impl RayScene {
         out.set_item("u", &u)?;
         out.set_item("v", &v)?;
         out.set_item("normal", &normal)?;
-        kept.keep([
+        recycle::keep([
             t.into_any(),
             mesh_id.into_any(),
             triangle_id.into_any(),

@@ -189,9 +189,10 @@ class RayScene:
         its mesh's faces wins, and of meshes, the lowest id.
 
         The arrays are the caller's to keep and change. Once nothing refers
-        to them any more (no name, view or memoryview), the scene may write
-        a later query's answers into them rather than into new memory; the
-        last 16 are kept for that while the scene lives."""
+        to them any more (no name, view or memoryview), a later query (of
+        any scene) may write its answers into them rather than into new
+        memory; the last 16 answer arrays, up to 256 MiB, are kept for
+        that."""
         return self._scene.intersect(*self._rays(origins, directions, tmin, tmax, threads))
 
     def occluded(self, origins: ArrayLike, directions: ArrayLike, tmin: float = 0.0,
