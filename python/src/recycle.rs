@@ -24,8 +24,10 @@ use numpy::ndarray::Dimension;
 use numpy::{Element, PyArray, PyArrayDescrMethods, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-/// Arrays kept at most: two nearest-hit queries' six, and a few more.
-const KEEP: usize = 16;
+/// Arrays kept at most: four nearest-hit queries' six (a caller that
+/// keeps each query's answers until the next one's are back lets go of
+/// them a query late).
+const KEEP: usize = 24;
 
 /// Bytes kept at most (256 MiB): four 1M-ray nearest-hit answers. A
 /// larger answer is not kept.

@@ -191,7 +191,7 @@ class RayScene:
         The arrays are the caller's to keep and change. Once nothing refers
         to them any more (no name, view or memoryview), a later query (of
         any scene) may write its answers into them rather than into new
-        memory; the last 16 answer arrays, up to 256 MiB, are kept for
+        memory; the last 24 answer arrays, up to 256 MiB, are kept for
         that."""
         return self._scene.intersect(*self._rays(origins, directions, tmin, tmax, threads))
 
