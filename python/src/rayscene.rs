@@ -408,7 +408,6 @@ impl<'py> Coords<'py> {
         )))
     }
 
-    /// The coordinates in place, in their own precision.
     /// The number of rows: points or rays.
     fn rows(&self) -> usize {
         match self {
@@ -417,6 +416,7 @@ impl<'py> Coords<'py> {
         }
     }
 
+    /// The coordinates in place, in their own precision.
     fn coordinates(&self) -> PyResult<Coordinates<'_>> {
         let layout_error = |name: &str| {
             PyValueError::new_err(format!(

@@ -306,8 +306,8 @@ impl RayScene {
         // Each chunk's answers wait in its piece of one vector of whole
         // answers, kept from query to query (see `WAITING`), then each
         // ray's is read back from its slot: one cache line a ray.
-        let kept = std::mem::take(&mut *WAITING.lock().unwrap_or_else(PoisonError::into_inner));
-        let mut waiting = kept;
+        let mut waiting =
+            std::mem::take(&mut *WAITING.lock().unwrap_or_else(PoisonError::into_inner));
         options.run(|| {
             if waiting.len() < n {
                 // Written by the workers, each its own part.
