@@ -12,7 +12,9 @@
 //!
 //! - [`RayScene::intersect`]: the nearest hit (t, mesh, triangle,
 //!   barycentric u and v, geometric normal), equal to the renderer's hit of
-//!   the same ray;
+//!   the same ray; [`RayScene::intersect_into`] writes the same into the
+//!   caller's arrays ([`HitsMut`]), so that a loop of large queries can
+//!   reuse one set rather than fault in new memory each time;
 //! - [`RayScene::occluded`]: whether anything is hit;
 //! - [`RayScene::count_intersections`], [`RayScene::all_intersections`]:
 //!   every triangle the ray hits in (t_min, t_max), sorted by t;
@@ -31,6 +33,10 @@
 //! let hits = scene.intersect(&rays, &QueryOptions::default()).unwrap();
 //! assert_eq!(hits.t[0], 1.0);
 //! assert_eq!((hits.mesh_id[0], hits.triangle_id[0]), (i64::from(id), 0));
+//! // Again, into the same arrays.
+//! let mut again = hits.clone();
+//! scene.intersect_into(&rays, again.as_mut(), &QueryOptions::default()).unwrap();
+//! assert_eq!(again, hits);
 //! let inside = scene.contains(&[0.1, 0.1, 0.1, 1.0, 1.0, 1.0], &QueryOptions::default());
 //! assert_eq!(inside.unwrap(), [true, false]);
 //! ```
