@@ -58,7 +58,9 @@ pub use scene::RayScene;
 pub enum QueryError {
     /// An argument is unusable; `argument` names it as the caller's API
     /// does (`vertices`, `faces`, `origins`, `directions`, `points`,
-    /// `tmin`, `tmax`, `threads`, `transform`).
+    /// `tmin`, `tmax`, `threads`, `transform`; for
+    /// [`RayScene::intersect_into`], the array of [`HitsMut`] of the wrong
+    /// length: `t`, `mesh_id`, `triangle_id`, `u`, `v`, `normal`).
     #[error("{argument}: {message}")]
     Invalid {
         /// The argument's name.
