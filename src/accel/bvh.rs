@@ -720,6 +720,51 @@ mod tests {
     }
 
     #[test]
+    fn every_kernel_orders_the_children_met_nearest_first() {
+        use crate::accel::simd::{Lanes, Scalar};
+        let bvh = Bvh::build(random_boxes(600, 29));
+        let mut rng = PixelRng::new(31, 0, 0);
+        let mut sorted = 0;
+        for i in 0..1000 {
+            let o = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 140.0 - 20.0;
+            let mut d = DVec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 2.0 - DVec3::ONE;
+            if i % 7 == 0 {
+                d.x = 0.0; // the zero-component path
+            }
+            let ray = NodeRay::new(o, d);
+            let limit = NodeRay::box_limit([f64::INFINITY, 60.0, 3.0][i % 3]);
+            for node in &bvh.wide {
+                // The reference: each lane met keyed by its own entry
+                // distance, sorted as numbers.
+                let (mask, near) = Scalar.entries(node, &ray, limit);
+                let mut expected: Vec<u32> = (0..wide::WIDTH)
+                    .filter(|&lane| mask & (1 << lane) != 0)
+                    .map(|lane| wide::child_key(near[lane], lane))
+                    .collect();
+                expected.sort_unstable();
+                sorted += usize::from(expected.len() > 2);
+                for kernel in kernels() {
+                    let (met, keys) = match kernel {
+                        #[cfg(target_arch = "x86_64")]
+                        Kernel::Avx2(k) => k.ordered_entries(node, &ray, limit),
+                        Kernel::Sse2 => simd::Sse2.ordered_entries(node, &ray, limit),
+                        Kernel::Scalar => Scalar.ordered_entries(node, &ray, limit),
+                    };
+                    assert_eq!(keys[..met], expected[..], "ray {i}, {kernel:?}");
+                    for &key in &keys[..met] {
+                        let lane = wide::key_lane(key);
+                        assert!(wide::key_entry(key) <= near[lane], "ray {i}");
+                    }
+                }
+            }
+        }
+        assert!(
+            sorted > 60,
+            "only {sorted} nodes with three children met or more"
+        );
+    }
+
+    #[test]
     fn the_packet_test_lets_through_every_box_a_ray_of_it_does() {
         use crate::accel::simd::{
             Lanes, NodePacket, PACKET, Scalar, packet_entries_scalar, ray_mask_scalar,

@@ -329,29 +329,24 @@ pub fn closest<L: Lanes>(
     let mut current = 0usize;
     loop {
         let node = &wide[current];
-        let (mask, near) = lanes.entries(node, ray, limit);
-        if mask != 0 {
+        let (met, keys) = lanes.ordered_entries(node, ray, limit);
+        if met != 0 {
             // The nearest child is taken at once; the others go on the
-            // stack, each inserted at its place (far at the bottom, near on
-            // top), so they come back nearest first.
-            let first = nearest_lane(mask, &near);
-            let mut rest = mask & !(1 << first);
-            let base = stack.len();
-            while rest != 0 {
-                let lane = rest.trailing_zeros() as usize;
-                rest &= rest - 1;
+            // stack far to near, so they come back nearest first.
+            for &key in keys[1..met].iter().rev() {
+                let lane = key_lane(key);
                 // Its node is visited after the nearest child's subtree:
                 // time enough for the cache to fetch it.
                 if node.count[lane] == 0 {
                     lanes.prefetch(&wide[node.child[lane] as usize]);
                 }
-                let item = StackEntry {
+                stack.push(StackEntry {
                     index: node.child[lane],
                     count: node.count[lane].into(),
-                    entry: near[lane],
-                };
-                push_in_order(stack, base, item, |e| e.entry);
+                    entry: key_entry(key),
+                });
             }
+            let first = key_lane(keys[0]);
             let (child, count) = (node.child[first] as usize, node.count[first] as usize);
             if count == 0 {
                 current = child;
@@ -431,22 +426,18 @@ pub fn closest_stream<L: Lanes, T: ClosestTest, const K: usize>(
             match next {
                 Step::Node(at) => {
                     let node = &wide[at];
-                    let (mask, near) = lanes.entries(node, &rays[k], limit[k]);
+                    let (met, keys) = lanes.ordered_entries(node, &rays[k], limit[k]);
                     next = Step::Pop;
-                    if mask != 0 {
-                        let first = nearest_lane(mask, &near);
-                        let mut rest = mask & !(1 << first);
-                        let base = stack.len();
-                        while rest != 0 {
-                            let lane = rest.trailing_zeros() as usize;
-                            rest &= rest - 1;
-                            let item = StackEntry {
+                    if met != 0 {
+                        for &key in keys[1..met].iter().rev() {
+                            let lane = key_lane(key);
+                            stack.push(StackEntry {
                                 index: node.child[lane],
                                 count: node.count[lane].into(),
-                                entry: near[lane],
-                            };
-                            push_in_order(stack, base, item, |e| e.entry);
+                                entry: key_entry(key),
+                            });
                         }
+                        let first = key_lane(keys[0]);
                         let (child, items) =
                             (node.child[first] as usize, node.count[first] as usize);
                         next = if items == 0 {
@@ -589,6 +580,29 @@ pub fn any_stream<L: Lanes, T: AnyTest, const K: usize>(
         }
     }
     blocked
+}
+
+/// A child a node test lets through, as a sort key: its entry distance's
+/// bits (a non-negative f32 orders as its bits do) with the lowest three
+/// replaced by its lane, so that keys sort nearest first (ties, and
+/// distances within 8 ulps, by lane) and one u32 carries both. The order
+/// decides only what is tested first, never the answer.
+#[inline(always)]
+pub(super) fn child_key(near: f32, lane: usize) -> u32 {
+    (near.to_bits() & !7) | lane as u32
+}
+
+/// The lane of a [`child_key`].
+#[inline(always)]
+pub(super) fn key_lane(key: u32) -> usize {
+    (key & 7) as usize
+}
+
+/// The entry distance of a [`child_key`], rounded down (to a multiple of
+/// 8 ulps), so that culling by it keeps every box the exact one keeps.
+#[inline(always)]
+pub(super) fn key_entry(key: u32) -> f32 {
+    f32::from_bits(key & !7)
 }
 
 /// The lane in `mask` with the least `near` (the lowest such lane).

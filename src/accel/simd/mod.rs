@@ -593,6 +593,24 @@ fn near_row(inv: f32, axis: usize) -> usize {
 pub(crate) trait Lanes: Copy {
     fn entries(self, node: &WideNode, ray: &NodeRay, limit: f32) -> (u32, [f32; WIDTH]);
 
+    /// The node test's children met in order: how many, and their keys
+    /// (`wide::child_key`) nearest first (past that many: unspecified).
+    #[inline(always)]
+    fn ordered_entries(self, node: &WideNode, ray: &NodeRay, limit: f32) -> (usize, [u32; WIDTH]) {
+        let (mask, near) = self.entries(node, ray, limit);
+        let mut keys = [u32::MAX; WIDTH];
+        let mut met = 0;
+        let mut scan = mask;
+        while scan != 0 {
+            let lane = scan.trailing_zeros() as usize;
+            scan &= scan - 1;
+            keys[met] = wide::child_key(near[lane], lane);
+            met += 1;
+        }
+        keys[..met].sort_unstable();
+        (met, keys)
+    }
+
     /// Asks the cache for a node that will be visited later (a hint only).
     #[inline(always)]
     fn prefetch(self, _node: &WideNode) {}
