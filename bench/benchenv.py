@@ -2,6 +2,7 @@
 numpy, creating it on first use (pip, from PyPI) and re-running the calling
 script there."""
 
+import ctypes.util
 import os
 import subprocess
 import sys
@@ -33,3 +34,17 @@ def ensure(extra=()):
         subprocess.run([PYTHON, "-m", "pip", "install", "-q", "--disable-pip-version-check", "embreex", "numpy"],
                        check=True)
     os.execv(PYTHON, [PYTHON] + sys.argv)
+
+
+def ensure_library(library, package):
+    """Installs Debian's `package` when the shared library `library` (as
+    ctypes names it: "usb-1.0") is missing: a wheel's system dependency,
+    such as Open3D's libusb, which pip cannot install."""
+    if ctypes.util.find_library(library):
+        return
+    print(f"installing {package} (for lib{library}) ...", file=sys.stderr)
+    sudo = [] if os.geteuid() == 0 else ["sudo"]
+    env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
+    subprocess.run(sudo + ["apt-get", "update", "-qq"], check=True, env=env)
+    subprocess.run(sudo + ["apt-get", "install", "-y", "-qq", package], check=True, env=env,
+                   stdout=subprocess.DEVNULL)

@@ -43,6 +43,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import benchenv  # noqa: E402
 
 benchenv.ensure(extra=("open3d-cpu",))
+# Open3D's wheel loads libusb, which a bare Debian lacks.
+benchenv.ensure_library("usb-1.0", "libusb-1.0-0")
 # NumPy's BLAS threads would spin in the CPU times measured below.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
