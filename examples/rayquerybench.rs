@@ -1,8 +1,8 @@
 //! CPU time of `RayScene`'s queries on the rays of `bench/rayqueries.py`,
 //! without Python (nearest hits written into arrays kept from round to
 //! round, as the Python methods write them): for profiling and for
-//! comparing two builds in alternation (each answer's hash is printed, so two builds can be seen
-//! to give the same bits).
+//! comparing two builds in alternation (each answer's hash is printed, so
+//! two builds can be seen to give the same bits).
 //!
 //! Usage: cargo run --release --example rayquerybench -- DIR [ROUNDS] [FILTER]
 //! DIR holds `MESH.v` (f64 x, y, z per vertex), `MESH.f` (u32 a, b, c per

@@ -191,7 +191,8 @@ unsafe fn entries(node: &WideNode, ray: &NodeRay, limit: f32) -> (u32, [f32; WID
 /// `Lanes::ordered_entries` in registers: the keys (`wide::child_key`) of
 /// the eight lanes, those not met made the greatest, put in order by a
 /// sorting network, so that a node visit costs no branch per child met
-/// (those mispredicted: a third of a scattered ray's mispredictions).
+/// (in cachegrind's simulated predictor those were a third of a scattered
+/// ray's mispredictions).
 ///
 /// # Safety
 /// The CPU must have AVX2.
