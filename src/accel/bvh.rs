@@ -751,6 +751,14 @@ mod tests {
                         Kernel::Scalar => Scalar.ordered_entries(node, &ray, limit),
                     };
                     assert_eq!(keys[..met], expected[..], "ray {i}, {kernel:?}");
+                    // The packet traversal's form, from distances given.
+                    let (given, given_keys) = match kernel {
+                        #[cfg(target_arch = "x86_64")]
+                        Kernel::Avx2(k) => k.order(mask, &near),
+                        Kernel::Sse2 => simd::Sse2.order(mask, &near),
+                        Kernel::Scalar => Scalar.order(mask, &near),
+                    };
+                    assert_eq!(given_keys[..given], expected[..], "ray {i}, {kernel:?}");
                     for &key in &keys[..met] {
                         let lane = wide::key_lane(key);
                         assert!(wide::key_entry(key) <= near[lane], "ray {i}");

@@ -17,7 +17,7 @@
 //! order). Only the number of boxes and items tested changes.
 
 use super::simd::{Lanes, NodePacket, NodeRay, PACKET};
-use super::wide::{Stack, WIDTH, WideNode, nearest_lane, push_in_order};
+use super::wide::{Stack, WIDTH, WideNode, key_entry, key_lane};
 
 /// A child of a wide node on the packet's closest-hit stack.
 #[derive(Clone, Copy, Debug)]
@@ -132,23 +132,20 @@ pub fn closest<L: Lanes>(
         let node = &wide[current];
         let (mask, near, child_rays) = children(lanes, node, packet, current_rays, &limits);
         if mask != 0 {
-            let first = nearest_lane(mask, &near);
-            let mut rest = mask & !(1 << first);
-            let base = stack.len();
-            while rest != 0 {
-                let lane = rest.trailing_zeros() as usize;
-                rest &= rest - 1;
+            let (met, keys) = lanes.order(mask, &near);
+            for &key in keys[1..met].iter().rev() {
+                let lane = key_lane(key);
                 if node.count[lane] == 0 {
                     lanes.prefetch(&wide[node.child[lane] as usize]);
                 }
-                let item = PacketEntry {
+                stack.push(PacketEntry {
                     index: node.child[lane],
                     count: node.count[lane],
                     rays: child_rays[lane],
-                    entry: near[lane],
-                };
-                push_in_order(stack, base, item, |e| e.entry);
+                    entry: key_entry(key),
+                });
             }
+            let first = key_lane(keys[0]);
             let (child, count) = (node.child[first] as usize, node.count[first] as usize);
             if count == 0 {
                 (current, current_rays) = (child, child_rays[first].into());

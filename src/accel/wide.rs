@@ -605,39 +605,6 @@ pub(super) fn key_entry(key: u32) -> f32 {
     f32::from_bits(key & !7)
 }
 
-/// The lane in `mask` with the least `near` (the lowest such lane).
-#[inline(always)]
-pub(super) fn nearest_lane(mask: u32, near: &[f32; WIDTH]) -> usize {
-    let mut first = mask.trailing_zeros() as usize;
-    let mut scan = mask & (mask - 1);
-    while scan != 0 {
-        let lane = scan.trailing_zeros() as usize;
-        scan &= scan - 1;
-        if near[lane] < near[first] {
-            first = lane;
-        }
-    }
-    first
-}
-
-/// Pushes `item` and sinks it below the entries above `base` that are
-/// nearer (by `entry`), so that a node's children come back off the stack
-/// nearest first.
-#[inline(always)]
-pub(super) fn push_in_order<T>(
-    stack: &mut impl Stack<T>,
-    base: usize,
-    item: T,
-    entry: impl Fn(&T) -> f32,
-) {
-    stack.push(item);
-    let mut k = stack.len() - 1;
-    while k > base && entry(&stack[k - 1]) < entry(&stack[k]) {
-        stack.swap(k - 1, k);
-        k -= 1;
-    }
-}
-
 /// Any-hit traversal over wide nodes; see `Bvh::any`. Leaves are tested as
 /// soon as their box is met, interior children go on the stack.
 #[inline(always)]

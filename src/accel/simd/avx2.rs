@@ -79,6 +79,13 @@ impl Lanes for Avx2 {
     }
 
     #[inline(always)]
+    fn order(self, mask: u32, near: &[f32; WIDTH]) -> (usize, [u32; WIDTH]) {
+        // SAFETY: `self` exists only where `detect` found AVX2; the load
+        // reads the eight f32 of `near`.
+        unsafe { ordered_keys(mask, _mm256_loadu_ps(near.as_ptr())) }
+    }
+
+    #[inline(always)]
     fn masked_max(self, values: &[f32; PACKET], mask: u32) -> f32 {
         // SAFETY: `self` exists only where `detect` found AVX2.
         unsafe { masked_max(values, mask) }
@@ -223,7 +230,20 @@ unsafe fn ordered_entries(node: &WideNode, ray: &NodeRay, limit: f32) -> (usize,
             ],
             _mm256_set1_ps(limit),
         );
-        let mask = mask & node.valid;
+        ordered_keys(mask & node.valid, near)
+    }
+}
+
+/// The keys (`wide::child_key`) of the lanes of `mask`, entry distances
+/// `near`, nearest first (see `ordered_entries`).
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[inline(always)]
+unsafe fn ordered_keys(mask: u32, near: __m256) -> (usize, [u32; WIDTH]) {
+    // SAFETY: the caller guarantees AVX2; the store writes eight u32 (32
+    // bytes) into an array of that size.
+    unsafe {
         let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
         let met = _mm256_cmpeq_epi32(
             _mm256_and_si256(_mm256_set1_epi32(mask as i32), lane_bits),

@@ -598,6 +598,13 @@ pub(crate) trait Lanes: Copy {
     #[inline(always)]
     fn ordered_entries(self, node: &WideNode, ray: &NodeRay, limit: f32) -> (usize, [u32; WIDTH]) {
         let (mask, near) = self.entries(node, ray, limit);
+        self.order(mask, &near)
+    }
+
+    /// The lanes of `mask`, of entry distances `near` (non-negative), in
+    /// order: how many, and their keys (`wide::child_key`) nearest first.
+    #[inline(always)]
+    fn order(self, mask: u32, near: &[f32; WIDTH]) -> (usize, [u32; WIDTH]) {
         let mut keys = [u32::MAX; WIDTH];
         let mut met = 0;
         let mut scan = mask;
