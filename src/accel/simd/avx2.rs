@@ -165,33 +165,13 @@ unsafe fn masked_max(values: &[f32; PACKET], mask: u32) -> f32 {
 /// The CPU must have AVX2.
 #[inline(always)]
 unsafe fn entries(node: &WideNode, ray: &NodeRay, limit: f32) -> (u32, [f32; WIDTH]) {
-    // SAFETY (every block below): the caller guarantees AVX2; the loads
-    // and the store read and write eight f32 (32 bytes) of arrays of that
-    // size, and the unaligned forms have no alignment requirement.
+    // SAFETY: the caller guarantees AVX2; the store writes eight f32 (32
+    // bytes) into an array of that size.
     unsafe {
-        let t = |row: usize, axis: usize| {
-            let plane = _mm256_loadu_ps(node.planes[row].as_ptr());
-            _mm256_mul_ps(
-                _mm256_sub_ps(plane, _mm256_set1_ps(ray.origin[axis])),
-                _mm256_set1_ps(ray.inv_dir[axis]),
-            )
-        };
-        let (mask, near) = slab8(
-            [
-                t(ray.near_row[0], 0),
-                t(ray.near_row[1], 1),
-                t(ray.near_row[2], 2),
-            ],
-            [
-                t(ray.far_row[0], 0),
-                t(ray.far_row[1], 1),
-                t(ray.far_row[2], 2),
-            ],
-            _mm256_set1_ps(limit),
-        );
+        let (mask, near) = node_test(node, ray, limit);
         let mut out = [0.0f32; WIDTH];
         _mm256_storeu_ps(out.as_mut_ptr(), near);
-        (mask & node.valid, out)
+        (mask, out)
     }
 }
 
@@ -205,10 +185,23 @@ unsafe fn entries(node: &WideNode, ray: &NodeRay, limit: f32) -> (u32, [f32; WID
 /// The CPU must have AVX2.
 #[inline(always)]
 unsafe fn ordered_entries(node: &WideNode, ray: &NodeRay, limit: f32) -> (usize, [u32; WIDTH]) {
-    // SAFETY (every block below): the caller guarantees AVX2; the loads
-    // and the store read and write eight 32-bit values (32 bytes) of
-    // arrays of that size, and the unaligned forms have no alignment
-    // requirement.
+    // SAFETY: the caller guarantees AVX2.
+    unsafe {
+        let (mask, near) = node_test(node, ray, limit);
+        ordered_keys(mask, near)
+    }
+}
+
+/// The node test of `entries` and `ordered_entries`: the mask of the
+/// valid lanes met before `limit`, and the entry distances, in a register.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[inline(always)]
+unsafe fn node_test(node: &WideNode, ray: &NodeRay, limit: f32) -> (u32, __m256) {
+    // SAFETY: the caller guarantees AVX2; each load reads eight f32 (32
+    // bytes) of a plane row of that size, and the unaligned form has no
+    // alignment requirement.
     unsafe {
         let t = |row: usize, axis: usize| {
             let plane = _mm256_loadu_ps(node.planes[row].as_ptr());
@@ -230,7 +223,7 @@ unsafe fn ordered_entries(node: &WideNode, ray: &NodeRay, limit: f32) -> (usize,
             ],
             _mm256_set1_ps(limit),
         );
-        ordered_keys(mask & node.valid, near)
+        (mask & node.valid, near)
     }
 }
 
