@@ -33,7 +33,7 @@
 //! let hits = scene.intersect(&rays, &QueryOptions::default()).unwrap();
 //! assert_eq!(hits.t[0], 1.0);
 //! assert_eq!((hits.mesh_id[0], hits.triangle_id[0]), (i64::from(id), 0));
-//! // Again, into the same arrays.
+//! // Again, into arrays the caller holds (here a copy of the first answer).
 //! let mut again = hits.clone();
 //! scene.intersect_into(&rays, again.as_mut(), &QueryOptions::default()).unwrap();
 //! assert_eq!(again, hits);
