@@ -433,6 +433,30 @@ impl RayScene {
         }
     }
 
+    /// For the any-hit and counting queries' group of rays
+    /// `chunk + first..chunk + first + n`: `None` when they are left in
+    /// `alone`, to be traced one by one (incoherent rays through the mesh
+    /// of `mesh_alone`), without the group's copies of the rays and its
+    /// box tests; otherwise whether they are coherent (see `coherent`).
+    fn leave_alone(
+        &self,
+        rays: &RayChunk,
+        chunk: usize,
+        first: usize,
+        n: usize,
+        scale: f64,
+        alone: &mut ByAxes,
+    ) -> Option<bool> {
+        let coherent = coherent(n, |k| rays.ray(chunk + first + k), scale);
+        if coherent || self.mesh_alone().is_none() {
+            return Some(coherent);
+        }
+        for k in first..first + n {
+            alone.push(k, rays.ray(chunk + k).1);
+        }
+        None
+    }
+
     /// Whether each ray hits anything with t in (t_min, t_max).
     pub fn occluded(&self, rays: &Rays, options: &QueryOptions) -> Result<Vec<bool>, QueryError> {
         let order = self.trace_order(rays, options)?;
@@ -455,7 +479,11 @@ impl RayScene {
                 if may_hit {
                     for (g, group) in out[block..end].chunks_mut(PACKET).enumerate() {
                         let first = block + g * PACKET;
-                        self.blocked_group(rays, base, first, group, scale, &mut alone);
+                        let coherent =
+                            self.leave_alone(rays, base, first, group.len(), scale, &mut alone);
+                        if let Some(coherent) = coherent {
+                            self.blocked_group(rays, base, first, group, coherent, &mut alone);
+                        }
                     }
                 }
             });
@@ -497,7 +525,11 @@ impl RayScene {
                 if may_hit {
                     for (g, group) in out[block..end].chunks_mut(STREAM).enumerate() {
                         let first = block + g * STREAM;
-                        self.count_group(rays, base, first, group, scale, &mut alone);
+                        let coherent =
+                            self.leave_alone(rays, base, first, group.len(), scale, &mut alone);
+                        if let Some(coherent) = coherent {
+                            self.count_group(rays, base, first, group, coherent, &mut alone);
+                        }
                     }
                 }
             });
@@ -763,12 +795,11 @@ impl RayScene {
         chunk: usize,
         first: usize,
         out: &mut [bool],
-        scale: f64,
+        coherent: bool,
         alone: &mut ByAxes,
     ) {
         let n = out.len();
         let world: [(DVec3, DVec3); PACKET] = gather(rays, chunk + first, n);
-        let coherent = coherent(n, |k| world[k], scale);
         // As in `nearest_group`.
         let skip_box = self.meshes.len() == 1;
         for placed in &self.meshes {
@@ -833,12 +864,11 @@ impl RayScene {
         chunk: usize,
         first: usize,
         out: &mut [u32],
-        scale: f64,
+        coherent: bool,
         alone: &mut ByAxes,
     ) {
         let n = out.len();
         let world: [(DVec3, DVec3); STREAM] = gather(rays, chunk + first, n);
-        let coherent = coherent(n, |k| world[k], scale);
         // As in `nearest_group`.
         let skip_box = self.meshes.len() == 1;
         for placed in &self.meshes {
