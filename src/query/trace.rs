@@ -2,15 +2,18 @@
 //! first three take rays in runs of [`SPAN`]: a run whose directions share
 //! their signs is first tested as one span against each mesh's tree, and
 //! answered as misses when it reaches no leaf (a camera's rays beside the
-//! meshes). The rest go in groups of eight; a coherent group (nearly parallel rays
-//! from nearby origins: a camera's, a lidar's) goes through each mesh's
-//! tree as a packet, an incoherent one through a large mesh as a stream
-//! (each ray's next reads prefetched while the others step), otherwise ray
-//! by ray. Each path gives, to the bit, the hit the renderer's
-//! `Mesh::intersect` gives that ray alone, so the choice changes only the
-//! speed. So does the order the rays are traced in: a large batch of
-//! scattered rays through a mesh beyond the cache is sorted first (see
-//! `query::order`), its answers put back in the rays' order.
+//! meshes). The rest go in groups of eight; a coherent group (nearly
+//! parallel rays from nearby origins: a camera's, a lidar's) goes through
+//! each mesh's tree as a packet, an incoherent one through a large mesh as
+//! a stream (each ray's next reads prefetched while the others step),
+//! otherwise ray by ray. In a scene of one untransformed mesh the
+//! incoherent groups skip the group's copies: their rays are traced one
+//! by one, or, beyond the cache, left for streams of [`STREAM`] rays at
+//! the end of their chunk. Each path gives, to the bit, the hit the
+//! renderer's `Mesh::intersect` gives that ray alone, so the choice
+//! changes only the speed. So does the order the rays are traced in: a
+//! large batch of scattered rays through a mesh beyond the cache is sorted
+//! first (see `query::order`), its answers put back in the rays' order.
 
 use std::sync::{Mutex, PoisonError};
 
@@ -28,9 +31,6 @@ use crate::geometry::cuboid::slab_interval;
 use crate::geometry::mesh::{FacetHit, Mesh, STREAM};
 use crate::geometry::triangle::axis_permutation;
 use crate::huge_pages;
-
-// A counting group is a packet or a stream, as its rays are.
-const _: () = assert!(STREAM == PACKET);
 
 /// Rays per task, and between checks of the cancel flag.
 const CHUNK: usize = 1024;
@@ -375,7 +375,8 @@ impl RayScene {
         let mut gathered = Gathered::default();
         let (rays, base) = chunk_rays(rays, order, first, out.len(), &mut gathered)?;
         let rays = &rays;
-        let alone = self.mesh_alone();
+        let single = self.single_mesh();
+        let mut alone = ByAxes::new();
         self.runs(rays, base, out.len(), |block, end, may_hit| {
             if !may_hit {
                 out.misses(block..end);
@@ -384,9 +385,13 @@ impl RayScene {
             for first in (block..end).step_by(PACKET) {
                 let count = PACKET.min(end - first);
                 let coherent = coherent(count, |k| rays.ray(base + first + k), scale);
-                if let Some(mesh) = alone
+                if let Some(mesh) = single
                     && !coherent
                 {
+                    if mesh.memory_bytes() > STREAM_BYTES {
+                        (first..first + count).for_each(|k| alone.push_in_order(k));
+                        continue;
+                    }
                     // Straight from the rays to the answers, in their
                     // order: no group's copies of the rays and of their
                     // hits. (Taken a permutation at a time, as `occluded`
@@ -416,28 +421,47 @@ impl RayScene {
                 }
             }
         });
+        // Those left of a mesh beyond the cache, STREAM at a time.
+        if let Some(mesh) = single {
+            alone.streams(|ks| {
+                let (world, t_max) = stream_rays(rays, base, ks);
+                let mut hits = [None; STREAM];
+                let hits = &mut hits[..ks.len()];
+                mesh.intersect_facet_stream(
+                    &world[..ks.len()],
+                    rays.t_min,
+                    &t_max[..ks.len()],
+                    hits,
+                );
+                for (&k, h) in ks.iter().zip(hits) {
+                    let k = usize::from(k);
+                    match h {
+                        Some(h) => out.put(k, &answer(0, h, h.normal)),
+                        None => out.misses(k..k + 1),
+                    }
+                }
+            });
+        }
         Ok(())
     }
 
-    /// The mesh of a scene of one untransformed mesh within the cache,
-    /// whose incoherent rays are traced one by one (`nearest_group`
-    /// would do no more than that for them).
-    fn mesh_alone(&self) -> Option<&Mesh> {
+    /// The mesh of a scene of one untransformed mesh, whose incoherent
+    /// rays are left to be traced one by one (within the cache) or in
+    /// streams of their own (beyond it), without the groups' copies of
+    /// the rays, of their hits and their box tests (`nearest_group` would
+    /// do no more than that for them).
+    fn single_mesh(&self) -> Option<&Mesh> {
         match self.meshes.as_slice() {
-            [placed]
-                if placed.transform.is_none() && placed.mesh.memory_bytes() <= STREAM_BYTES =>
-            {
-                Some(&placed.mesh)
-            }
+            [placed] if placed.transform.is_none() => Some(&placed.mesh),
             _ => None,
         }
     }
 
     /// For the any-hit and counting queries' group of rays
     /// `chunk + first..chunk + first + n`: `None` when they are left in
-    /// `alone`, to be traced one by one (incoherent rays through the mesh
-    /// of `mesh_alone`), without the group's copies of the rays and its
-    /// box tests; otherwise whether they are coherent (see `coherent`).
+    /// `alone`, incoherent rays through the mesh of `single_mesh` (a
+    /// permutation at a time within the cache, in their order beyond
+    /// it); otherwise whether they are coherent (see `coherent`).
     fn leave_alone(
         &self,
         rays: &RayChunk,
@@ -448,11 +472,15 @@ impl RayScene {
         alone: &mut ByAxes,
     ) -> Option<bool> {
         let coherent = coherent(n, |k| rays.ray(chunk + first + k), scale);
-        if coherent || self.mesh_alone().is_none() {
+        let Some(mesh) = self.single_mesh().filter(|_| !coherent) else {
             return Some(coherent);
-        }
+        };
         for k in first..first + n {
-            alone.push(k, rays.ray(chunk + k).1);
+            if mesh.memory_bytes() > STREAM_BYTES {
+                alone.push_in_order(k);
+            } else {
+                alone.push(k, rays.ray(chunk + k).1);
+            }
         }
         None
     }
@@ -487,13 +515,22 @@ impl RayScene {
                     }
                 }
             });
-            // The rays left to trace alone, a permutation at a time (see
-            // `ByAxes`).
-            if let Some(placed) = self.meshes.first() {
-                alone.each(|k| {
+            // The rays left alone (see `leave_alone`), one by one or in
+            // streams.
+            match self.single_mesh() {
+                Some(mesh) if mesh.memory_bytes() > STREAM_BYTES => alone.streams(|ks| {
+                    let (world, t_max) = stream_rays(rays, base, ks);
+                    let n = ks.len();
+                    let blocked = mesh.any_hit_stream(&world[..n], rays.t_min, &t_max[..n]);
+                    for (i, &k) in ks.iter().enumerate() {
+                        out[usize::from(k)] = blocked & (1 << i) != 0;
+                    }
+                }),
+                Some(mesh) => alone.each(|k| {
                     let (o, d) = rays.ray(base + k);
-                    out[k] = placed.mesh.any_hit(o, d, rays.t_min, rays.t_max);
-                });
+                    out[k] = mesh.any_hit(o, d, rays.t_min, rays.t_max);
+                }),
+                None => {}
             }
         })
     }
@@ -523,8 +560,8 @@ impl RayScene {
             // Rays that meet nothing keep a count of 0.
             self.runs(rays, base, out.len(), |block, end, may_hit| {
                 if may_hit {
-                    for (g, group) in out[block..end].chunks_mut(STREAM).enumerate() {
-                        let first = block + g * STREAM;
+                    for (g, group) in out[block..end].chunks_mut(PACKET).enumerate() {
+                        let first = block + g * PACKET;
                         let coherent =
                             self.leave_alone(rays, base, first, group.len(), scale, &mut alone);
                         if let Some(coherent) = coherent {
@@ -534,11 +571,22 @@ impl RayScene {
                 }
             });
             // As in `occluded`.
-            if let Some(placed) = self.meshes.first() {
-                alone.each(|k| {
+            match self.single_mesh() {
+                Some(mesh) if mesh.memory_bytes() > STREAM_BYTES => alone.streams(|ks| {
+                    let (world, t_max) = stream_rays(rays, base, ks);
+                    let n = ks.len();
+                    let mut counts = [0; STREAM];
+                    let counts = &mut counts[..n];
+                    mesh.count_hits_stream(&world[..n], rays.t_min, &t_max[..n], counts);
+                    for (&k, &c) in ks.iter().zip(counts.iter()) {
+                        out[usize::from(k)] = c;
+                    }
+                }),
+                Some(mesh) => alone.each(|k| {
                     let (o, d) = rays.ray(base + k);
-                    out[k] = placed.mesh.count_hits(o, d, rays.t_min, rays.t_max);
-                });
+                    out[k] = mesh.count_hits(o, d, rays.t_min, rays.t_max);
+                }),
+                None => {}
             }
         })
     }
@@ -850,7 +898,7 @@ impl RayScene {
     }
 
     /// The hit counts of rays `first..first + out.len()` (at most
-    /// [`STREAM`], which is [`PACKET`]): coherent ones as a packet,
+    /// [`PACKET`]): coherent ones as a packet,
     /// incoherent ones through a large mesh in a stream, otherwise ray by
     /// ray. Every hit is counted, so the any-hit traversals serve (run to
     /// their ends), which sort no children.
@@ -868,18 +916,18 @@ impl RayScene {
         alone: &mut ByAxes,
     ) {
         let n = out.len();
-        let world: [(DVec3, DVec3); STREAM] = gather(rays, chunk + first, n);
+        let world: [(DVec3, DVec3); PACKET] = gather(rays, chunk + first, n);
         // As in `nearest_group`.
         let skip_box = self.meshes.len() == 1;
         for placed in &self.meshes {
             let (reach, live) =
-                reach_into::<STREAM>(placed, &world[..n], rays.t_min, skip_box, |_| {
+                reach_into::<PACKET>(placed, &world[..n], rays.t_min, skip_box, |_| {
                     Some(rays.t_max)
                 });
             if live == 0 {
                 continue;
             }
-            let moved: [(DVec3, DVec3); STREAM];
+            let moved: [(DVec3, DVec3); PACKET];
             let local = match placed.transform {
                 None => &world,
                 Some(_) => {
@@ -994,10 +1042,26 @@ impl ByAxes {
         self.count[p] += 1;
     }
 
+    /// Leaves ray `k` in the rays' order (for streams, which take any
+    /// permutations; the order keeps a sorted batch's neighbours together).
+    #[inline(always)]
+    fn push_in_order(&mut self, k: usize) {
+        self.rays[0][self.count[0]] = k as u16;
+        self.count[0] += 1;
+    }
+
     /// Calls `trace` with each ray left, a permutation after another.
     fn each(&self, mut trace: impl FnMut(usize)) {
         for (rays, &count) in self.rays.iter().zip(&self.count) {
             rays[..count].iter().for_each(|&k| trace(usize::from(k)));
+        }
+    }
+
+    /// Calls `trace` with the rays left, [`STREAM`] at a time (fewer at
+    /// the end of each permutation's).
+    fn streams(&self, mut trace: impl FnMut(&[u16])) {
+        for (rays, &count) in self.rays.iter().zip(&self.count) {
+            rays[..count].chunks(STREAM).for_each(&mut trace);
         }
     }
 }
@@ -1012,6 +1076,21 @@ fn gather<const N: usize>(rays: &RayChunk, first: usize, n: usize) -> [(DVec3, D
         *ray = rays.ray(first + k.min(n - 1));
     }
     world
+}
+
+/// The rays of the chunk's indices `ks` (at most [`STREAM`]), from
+/// `base`, and their limits, for a mesh's stream.
+#[inline(always)]
+fn stream_rays(
+    rays: &RayChunk,
+    base: usize,
+    ks: &[u16],
+) -> ([(DVec3, DVec3); STREAM], [f64; STREAM]) {
+    let mut world = [(DVec3::ZERO, DVec3::ZERO); STREAM];
+    for (ray, &k) in world.iter_mut().zip(ks) {
+        *ray = rays.ray(base + usize::from(k));
+    }
+    (world, [rays.t_max; STREAM])
 }
 
 /// How far each of `world`'s rays reaches into `placed`: `limit(k)`, or
