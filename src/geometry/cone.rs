@@ -128,8 +128,8 @@ impl Cone {
     }
 
     /// For each of `N` rays (origins and directions by coordinate, as a
-    /// structure of arrays), the nearest crossing in (0, t_max[k]) as
-    /// [`nearest_crossing`](Self::nearest_crossing) finds it, without a
+    /// structure of arrays), the nearest crossing in (0, t_max\[k\]) as
+    /// `nearest_crossing` finds it, without a
     /// branch (every case computed, then chosen by masks and selects), so
     /// that the loop over the rays compiles to vector code: the same
     /// operations on the same values lane by lane, so the same bits.
