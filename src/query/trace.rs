@@ -475,12 +475,10 @@ impl RayScene {
         let Some(mesh) = self.single_mesh().filter(|_| !coherent) else {
             return Some(coherent);
         };
-        for k in first..first + n {
-            if mesh.memory_bytes() > STREAM_BYTES {
-                alone.push_in_order(k);
-            } else {
-                alone.push(k, rays.ray(chunk + k).1);
-            }
+        if mesh.memory_bytes() > STREAM_BYTES {
+            (first..first + n).for_each(|k| alone.push_in_order(k));
+        } else {
+            (first..first + n).for_each(|k| alone.push(k, rays.ray(chunk + k).1));
         }
         None
     }
