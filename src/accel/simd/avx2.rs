@@ -25,8 +25,8 @@ use crate::accel::wide::{self, AnyTest, ClosestTest, Stack, StackEntry, WIDTH, W
 #[repr(C, align(64))]
 struct FrameAlign([u8; 64]);
 
-/// Realigns the calling frame (see [`FrameAlign`]); inlined, it costs a
-/// store.
+/// Realigns the calling frame (see [`FrameAlign`]); inlined, it costs the
+/// realignment in the prologue and a 64-byte store, once per search.
 #[inline(always)]
 fn realign_frame() {
     let mut slot = FrameAlign([0; 64]);
