@@ -385,10 +385,10 @@ impl RayScene {
             for first in (block..end).step_by(PACKET) {
                 let count = PACKET.min(end - first);
                 let coherent = coherent(count, |k| rays.ray(base + first + k), scale);
-                if let Some(mesh) = single
+                if let Some((mesh, beyond_cache)) = single
                     && !coherent
                 {
-                    if mesh.memory_bytes() > STREAM_BYTES {
+                    if beyond_cache {
                         (first..first + count).for_each(|k| alone.push_in_order(k));
                         continue;
                     }
@@ -422,7 +422,7 @@ impl RayScene {
             }
         });
         // Those left of a mesh beyond the cache, STREAM at a time.
-        if let Some(mesh) = single {
+        if let Some((mesh, true)) = single {
             alone.streams(|ks| {
                 let (world, t_max) = stream_rays(rays, base, ks);
                 let mut hits = [None; STREAM];
@@ -445,42 +445,96 @@ impl RayScene {
         Ok(())
     }
 
-    /// The mesh of a scene of one untransformed mesh, whose incoherent
-    /// rays are left to be traced one by one (within the cache) or in
-    /// streams of their own (beyond it), without the groups' copies of
-    /// the rays, of their hits and their box tests (`nearest_group` would
-    /// do no more than that for them).
-    fn single_mesh(&self) -> Option<&Mesh> {
+    /// The mesh of a scene of one untransformed mesh, and whether it lies
+    /// beyond the cache (`STREAM_BYTES`): its incoherent rays are left to
+    /// be traced one by one (within the cache) or in streams of their own
+    /// (beyond it), without the groups' copies of the rays, of their hits
+    /// and their box tests (`nearest_group` would do no more than that
+    /// for them). Asked once per chunk.
+    fn single_mesh(&self) -> Option<(&Mesh, bool)> {
         match self.meshes.as_slice() {
-            [placed] if placed.transform.is_none() => Some(&placed.mesh),
+            [placed] if placed.transform.is_none() => {
+                Some((&placed.mesh, placed.mesh.memory_bytes() > STREAM_BYTES))
+            }
             _ => None,
         }
     }
 
-    /// For the any-hit and counting queries' group of rays
-    /// `chunk + first..chunk + first + n`: `None` when they are left in
-    /// `alone`, incoherent rays through the mesh of `single_mesh` (a
-    /// permutation at a time within the cache, in their order beyond
-    /// it); otherwise whether they are coherent (see `coherent`).
-    fn leave_alone(
+    /// The any-hit and counting queries' answers (a miss's is
+    /// `T::default()`), chunk by chunk (see `each_chunk`): the rays in
+    /// groups of eight; a group of incoherent rays through the mesh of
+    /// `single_mesh` is left alone (a permutation at a time within the
+    /// cache, in its order beyond it), the others go to `group` (the
+    /// chunk's rays from their first, the group's first index and its
+    /// answers, whether it is coherent, the rays it leaves alone). Then
+    /// the rays left alone go one by one to `one` (mesh, origin,
+    /// direction), or [`STREAM`] at a time to `stream` (mesh, rays,
+    /// limits, answers).
+    fn in_groups<T: Copy + Default + Send + Sync>(
+        &self,
+        rays: &Rays,
+        order: Option<&TraceOrder>,
+        options: &QueryOptions,
+        group: impl Fn(&RayChunk, usize, usize, &mut [T], bool, &mut ByAxes) + Sync,
+        one: impl Fn(&Mesh, DVec3, DVec3) -> T + Sync,
+        stream: impl Fn(&Mesh, &[(DVec3, DVec3)], &[f64], &mut [T]) + Sync,
+    ) -> Result<Vec<T>, QueryError> {
+        let scale = self.bounds().diagonal();
+        self.each_chunk(rays, order, options, |rays, base, out: &mut [T]| {
+            self.answer_chunk(rays, base, out, scale, &group, &one, &stream);
+        })
+    }
+
+    /// [`in_groups`](Self::in_groups) for the chunk's rays from `base`,
+    /// into `out`.
+    #[allow(clippy::too_many_arguments)]
+    fn answer_chunk<T: Copy + Default>(
         &self,
         rays: &RayChunk,
-        chunk: usize,
-        first: usize,
-        n: usize,
+        base: usize,
+        out: &mut [T],
         scale: f64,
-        alone: &mut ByAxes,
-    ) -> Option<bool> {
-        let coherent = coherent(n, |k| rays.ray(chunk + first + k), scale);
-        let Some(mesh) = self.single_mesh().filter(|_| !coherent) else {
-            return Some(coherent);
-        };
-        if mesh.memory_bytes() > STREAM_BYTES {
-            (first..first + n).for_each(|k| alone.push_in_order(k));
-        } else {
-            (first..first + n).for_each(|k| alone.push(k, rays.ray(chunk + k).1));
+        group: &impl Fn(&RayChunk, usize, usize, &mut [T], bool, &mut ByAxes),
+        one: &impl Fn(&Mesh, DVec3, DVec3) -> T,
+        stream: &impl Fn(&Mesh, &[(DVec3, DVec3)], &[f64], &mut [T]),
+    ) {
+        let single = self.single_mesh();
+        let mut alone = ByAxes::new();
+        self.runs(rays, base, out.len(), |block, end, may_hit| {
+            if !may_hit {
+                return;
+            }
+            for (g, answers) in out[block..end].chunks_mut(PACKET).enumerate() {
+                let first = block + g * PACKET;
+                let n = answers.len();
+                let coherent = coherent(n, |k| rays.ray(base + first + k), scale);
+                match single {
+                    Some((_, true)) if !coherent => {
+                        (first..first + n).for_each(|k| alone.push_in_order(k));
+                    }
+                    Some((_, false)) if !coherent => {
+                        (first..first + n).for_each(|k| alone.push(k, rays.ray(base + k).1));
+                    }
+                    _ => group(rays, base, first, answers, coherent, &mut alone),
+                }
+            }
+        });
+        match single {
+            Some((mesh, true)) => alone.streams(|ks| {
+                let (world, t_max) = stream_rays(rays, base, ks);
+                let n = ks.len();
+                let mut answers = [T::default(); STREAM];
+                stream(mesh, &world[..n], &t_max[..n], &mut answers[..n]);
+                for (&k, &a) in ks.iter().zip(&answers[..n]) {
+                    out[usize::from(k)] = a;
+                }
+            }),
+            Some((mesh, false)) => alone.each(|k| {
+                let (o, d) = rays.ray(base + k);
+                out[k] = one(mesh, o, d);
+            }),
+            None => {}
         }
-        None
     }
 
     /// Whether each ray hits anything with t in (t_min, t_max).
@@ -497,40 +551,23 @@ impl RayScene {
         order: Option<&TraceOrder>,
         options: &QueryOptions,
     ) -> Result<Vec<bool>, QueryError> {
-        let scale = self.bounds().diagonal();
-        self.each_chunk(rays, order, options, |rays, base, out: &mut [bool]| {
-            let mut alone = ByAxes::new();
-            // Rays that meet nothing stay unblocked.
-            self.runs(rays, base, out.len(), |block, end, may_hit| {
-                if may_hit {
-                    for (g, group) in out[block..end].chunks_mut(PACKET).enumerate() {
-                        let first = block + g * PACKET;
-                        let coherent =
-                            self.leave_alone(rays, base, first, group.len(), scale, &mut alone);
-                        if let Some(coherent) = coherent {
-                            self.blocked_group(rays, base, first, group, coherent, &mut alone);
-                        }
-                    }
+        // Rays that meet nothing stay unblocked.
+        let (t_min, t_max) = (rays.t_min, rays.t_max);
+        self.in_groups(
+            rays,
+            order,
+            options,
+            |rays, chunk, first, out, coherent, alone| {
+                self.blocked_group(rays, chunk, first, out, coherent, alone)
+            },
+            |mesh, o, d| mesh.any_hit(o, d, t_min, t_max),
+            |mesh, world, limits, out| {
+                let blocked = mesh.any_hit_stream(world, t_min, limits);
+                for (i, b) in out.iter_mut().enumerate() {
+                    *b = blocked & (1 << i) != 0;
                 }
-            });
-            // The rays left alone (see `leave_alone`), one by one or in
-            // streams.
-            match self.single_mesh() {
-                Some(mesh) if mesh.memory_bytes() > STREAM_BYTES => alone.streams(|ks| {
-                    let (world, t_max) = stream_rays(rays, base, ks);
-                    let n = ks.len();
-                    let blocked = mesh.any_hit_stream(&world[..n], rays.t_min, &t_max[..n]);
-                    for (i, &k) in ks.iter().enumerate() {
-                        out[usize::from(k)] = blocked & (1 << i) != 0;
-                    }
-                }),
-                Some(mesh) => alone.each(|k| {
-                    let (o, d) = rays.ray(base + k);
-                    out[k] = mesh.any_hit(o, d, rays.t_min, rays.t_max);
-                }),
-                None => {}
-            }
-        })
+            },
+        )
     }
 
     /// How many triangles each ray hits with t in (t_min, t_max) (a ray
@@ -552,41 +589,18 @@ impl RayScene {
         order: Option<&TraceOrder>,
         options: &QueryOptions,
     ) -> Result<Vec<u32>, QueryError> {
-        let scale = self.bounds().diagonal();
-        self.each_chunk(rays, order, options, |rays, base, out: &mut [u32]| {
-            let mut alone = ByAxes::new();
-            // Rays that meet nothing keep a count of 0.
-            self.runs(rays, base, out.len(), |block, end, may_hit| {
-                if may_hit {
-                    for (g, group) in out[block..end].chunks_mut(PACKET).enumerate() {
-                        let first = block + g * PACKET;
-                        let coherent =
-                            self.leave_alone(rays, base, first, group.len(), scale, &mut alone);
-                        if let Some(coherent) = coherent {
-                            self.count_group(rays, base, first, group, coherent, &mut alone);
-                        }
-                    }
-                }
-            });
-            // As in `occluded`.
-            match self.single_mesh() {
-                Some(mesh) if mesh.memory_bytes() > STREAM_BYTES => alone.streams(|ks| {
-                    let (world, t_max) = stream_rays(rays, base, ks);
-                    let n = ks.len();
-                    let mut counts = [0; STREAM];
-                    let counts = &mut counts[..n];
-                    mesh.count_hits_stream(&world[..n], rays.t_min, &t_max[..n], counts);
-                    for (&k, &c) in ks.iter().zip(counts.iter()) {
-                        out[usize::from(k)] = c;
-                    }
-                }),
-                Some(mesh) => alone.each(|k| {
-                    let (o, d) = rays.ray(base + k);
-                    out[k] = mesh.count_hits(o, d, rays.t_min, rays.t_max);
-                }),
-                None => {}
-            }
-        })
+        // Rays that meet nothing keep a count of 0.
+        let (t_min, t_max) = (rays.t_min, rays.t_max);
+        self.in_groups(
+            rays,
+            order,
+            options,
+            |rays, chunk, first, out, coherent, alone| {
+                self.count_group(rays, chunk, first, out, coherent, alone)
+            },
+            |mesh, o, d| mesh.count_hits(o, d, t_min, t_max),
+            |mesh, world, limits, out| mesh.count_hits_stream(world, t_min, limits, out),
+        )
     }
 
     /// One answer per ray, each piece of at most [`CHUNK`] rays answered

@@ -161,11 +161,7 @@ unsafe fn masked_max(values: &[f32; PACKET], mask: u32) -> f32 {
     // SAFETY: the caller guarantees AVX2; the load reads the eight f32 of
     // `values`, the rest are register operations.
     unsafe {
-        let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-        let present = _mm256_cmpeq_epi32(
-            _mm256_and_si256(_mm256_set1_epi32(mask as i32), lane_bits),
-            lane_bits,
-        );
+        let present = lane_mask(mask);
         let v = _mm256_blendv_ps(
             _mm256_set1_ps(f32::NEG_INFINITY),
             _mm256_loadu_ps(values.as_ptr()),
@@ -249,6 +245,22 @@ unsafe fn node_test(node: &WideNode, ray: &NodeRay, limit: f32) -> (u32, __m256)
     }
 }
 
+/// Lane i all ones where bit i of `mask` is set, else zero.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[inline(always)]
+unsafe fn lane_mask(mask: u32) -> __m256i {
+    // SAFETY: the caller guarantees AVX2; register operations only.
+    unsafe {
+        let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+        _mm256_cmpeq_epi32(
+            _mm256_and_si256(_mm256_set1_epi32(mask as i32), lane_bits),
+            lane_bits,
+        )
+    }
+}
+
 /// The keys (`wide::child_key`) of the lanes of `mask`, entry distances
 /// `near`, nearest first (see `ordered_entries`).
 ///
@@ -259,11 +271,7 @@ unsafe fn ordered_keys(mask: u32, near: __m256) -> (usize, [u32; WIDTH]) {
     // SAFETY: the caller guarantees AVX2; the store writes eight u32 (32
     // bytes) into an array of that size.
     unsafe {
-        let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-        let met = _mm256_cmpeq_epi32(
-            _mm256_and_si256(_mm256_set1_epi32(mask as i32), lane_bits),
-            lane_bits,
-        );
+        let met = lane_mask(mask);
         let keys = _mm256_or_si256(
             _mm256_and_si256(_mm256_castps_si256(near), _mm256_set1_epi32(!7)),
             _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7),
