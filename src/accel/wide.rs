@@ -307,6 +307,31 @@ pub fn stack_need(wide: &[WideNode]) -> usize {
     }
 }
 
+/// [`closest`] with a stack for a tree whose traversal needs `need`
+/// entries at most ([`stack_need`]): on the call stack where it fits.
+#[inline(always)]
+pub fn closest_sized<L: Lanes>(
+    lanes: L,
+    wide: &[WideNode],
+    need: usize,
+    ray: &NodeRay,
+    t_max: f64,
+    leaf: impl ClosestTest,
+) -> f64 {
+    if need <= STACK {
+        closest(
+            lanes,
+            wide,
+            ray,
+            t_max,
+            &mut ArrayVec::<_, STACK>::new(),
+            leaf,
+        )
+    } else {
+        closest(lanes, wide, ray, t_max, &mut Vec::with_capacity(need), leaf)
+    }
+}
+
 /// Closest-hit traversal over wide nodes; see `Bvh::closest`.
 ///
 /// Of the children a node's test lets through, the nearest is taken at

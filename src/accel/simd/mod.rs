@@ -126,21 +126,23 @@ impl Kernel {
         }
     }
 
-    /// Closest-hit traversal (see `wide::closest`) on this kernel.
+    /// Closest-hit traversal (see `wide::closest`) on this kernel, of a
+    /// tree whose traversal stack needs `need` entries at most
+    /// (`wide::stack_need`).
     #[inline]
     pub(crate) fn closest(
         self,
         nodes: &[WideNode],
+        need: usize,
         ray: &NodeRay,
         t_max: f64,
-        stack: &mut impl Stack<StackEntry>,
         test: impl ClosestTest,
     ) -> f64 {
         match self {
             #[cfg(target_arch = "x86_64")]
-            Kernel::Avx2(k) => avx2::closest(k, nodes, ray, t_max, stack, test),
-            Kernel::Sse2 => wide::closest(Sse2, nodes, ray, t_max, stack, test),
-            Kernel::Scalar => wide::closest(Scalar, nodes, ray, t_max, stack, test),
+            Kernel::Avx2(k) => avx2::closest(k, nodes, need, ray, t_max, test),
+            Kernel::Sse2 => wide::closest_sized(Sse2, nodes, need, ray, t_max, test),
+            Kernel::Scalar => wide::closest_sized(Scalar, nodes, need, ray, t_max, test),
         }
     }
 
@@ -680,9 +682,11 @@ fn min(a: f32, b: f32) -> f32 {
 /// node test, scalar or vector, ends in these operations in this order.
 #[inline(always)]
 fn slab(near: [f32; 3], far: [f32; 3], limit: f32) -> (bool, f32) {
-    let n = max(max(max(near[0], near[1]), near[2]), 0.0);
+    // Paired so that the vector forms wait on fewer steps in a row (the
+    // next node's address waits on them).
+    let n = max(max(near[0], near[1]), max(near[2], 0.0));
     let f = min(min(far[0], far[1]), far[2]) * SLACK;
-    (n <= min(f, limit), n)
+    ((n <= f) & (n <= limit), n)
 }
 
 /// [`slab`] of a box whose distance to the plane of row `row` on axis
@@ -743,13 +747,12 @@ impl Lanes for Sse2 {
             };
             let n = t(ray.near_row[0], 0)
                 .max(t(ray.near_row[1], 1))
-                .max(t(ray.near_row[2], 2))
-                .max(Vec4::ZERO);
+                .max(t(ray.near_row[2], 2).max(Vec4::ZERO));
             let f = t(ray.far_row[0], 0)
                 .min(t(ray.far_row[1], 1))
                 .min(t(ray.far_row[2], 2))
                 * SLACK;
-            (n.cmple(f.min(Vec4::splat(limit))).bitmask(), n)
+            ((n.cmple(f) & n.cmple(Vec4::splat(limit))).bitmask(), n)
         };
         let (lo_mask, lo) = half(0);
         let (hi_mask, hi) = half(1);
