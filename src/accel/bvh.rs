@@ -998,11 +998,13 @@ mod tests {
         }
     }
 
-    /// The AVX2 search pushes a node's children without a branch per
-    /// child, into a stack of its own; it must visit what the generic one
-    /// visits, in its order, so that the renderer's bits do not depend on
-    /// the CPU. Checked on a random tree and on one too deep for the stack
-    /// kept on the call stack.
+    /// The AVX2 searches find their next node their own way (the
+    /// closest-hit one pushes a node's children without a branch per
+    /// child, into a stack of its own; the any-hit one goes to the last
+    /// interior child met without the stack); they must visit what the
+    /// generic ones visit, in their order, so that the renderer's bits do
+    /// not depend on the CPU. Checked on a random tree and on one too deep
+    /// for the stack kept on the call stack.
     #[test]
     fn every_kernel_tests_the_same_items_in_the_same_order() {
         let random = random_boxes(3000, 41);
@@ -1048,8 +1050,25 @@ mod tests {
                 };
                 let reference = tested(Kernel::Scalar);
                 tested_here += reference.1.len();
+                // Any-hit: to the end (nothing blocks), and stopped by the
+                // first box entered before half the closest entry's
+                // distance beyond it.
+                let reach = f64::from_bits(reference.0) * 1.5 + 1e-9;
+                let tested_any = |kernel: Kernel, blocks: bool| {
+                    let mut seen = Vec::new();
+                    let hit = bvh.any_on(kernel, &ray, reach, |p| {
+                        seen.push(p);
+                        blocks
+                            && box_entry(&boxes[bvh.order()[p] as usize], o, d)
+                                .is_some_and(|t| t < reach)
+                    });
+                    (hit, seen)
+                };
+                let any_reference = [false, true].map(|b| tested_any(Kernel::Scalar, b));
                 for kernel in kernels() {
                     assert_eq!(tested(kernel), reference, "{kernel:?}");
+                    let any = [false, true].map(|b| tested_any(kernel, b));
+                    assert_eq!(any, any_reference, "{kernel:?}");
                 }
             }
             assert!(tested_here > 600, "{tested_here} items tested");
