@@ -377,12 +377,7 @@ pub fn closest<L: Lanes>(
                 current = child;
                 continue;
             }
-            for position in child..child + count {
-                if let Some(t) = leaf.test(position, t_max) {
-                    t_max = t;
-                    limit = NodeRay::box_limit(t_max);
-                }
-            }
+            test_leaf(&mut leaf, child, count, &mut t_max, &mut limit);
         }
         // Pop until an interior node to visit; leaves are tested on the way.
         loop {
@@ -397,12 +392,26 @@ pub fn closest<L: Lanes>(
                 break;
             }
             let start = e.index as usize;
-            for position in start..start + e.count as usize {
-                if let Some(t) = leaf.test(position, t_max) {
-                    t_max = t;
-                    limit = NodeRay::box_limit(t_max);
-                }
-            }
+            test_leaf(&mut leaf, start, e.count as usize, &mut t_max, &mut limit);
+        }
+    }
+}
+
+/// Tests the leaf items `start..start + count` against the ray in turn,
+/// each up to the closest hit so far: `t_max` and its box limit follow
+/// each hit found.
+#[inline(always)]
+pub(super) fn test_leaf(
+    leaf: &mut impl ClosestTest,
+    start: usize,
+    count: usize,
+    t_max: &mut f64,
+    limit: &mut f32,
+) {
+    for position in start..start + count {
+        if let Some(t) = leaf.test(position, *t_max) {
+            *t_max = t;
+            *limit = NodeRay::box_limit(t);
         }
     }
 }

@@ -728,12 +728,7 @@ unsafe fn closest_in_rows(
                     current = child;
                     continue;
                 }
-                for position in child..child + count {
-                    if let Some(t) = leaf.test(position, t_max) {
-                        t_max = t;
-                        limit = NodeRay::box_limit(t_max);
-                    }
-                }
+                wide::test_leaf(&mut leaf, child, count, &mut t_max, &mut limit);
             }
             // Pop until an interior node to visit; leaves are tested on
             // the way.
@@ -750,12 +745,7 @@ unsafe fn closest_in_rows(
                     current = index;
                     break;
                 }
-                for position in index..index + count {
-                    if let Some(t) = leaf.test(position, t_max) {
-                        t_max = t;
-                        limit = NodeRay::box_limit(t_max);
-                    }
-                }
+                wide::test_leaf(&mut leaf, index, count, &mut t_max, &mut limit);
             }
         }
     }
