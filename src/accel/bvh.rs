@@ -1050,9 +1050,9 @@ mod tests {
                 };
                 let reference = tested(Kernel::Scalar);
                 tested_here += reference.1.len();
-                // Any-hit: to the end (nothing blocks), and stopped by the
-                // first box entered before half the closest entry's
-                // distance beyond it.
+                // Any-hit: run to its end (nothing blocks), and stopped at
+                // the first item whose box is entered within half again
+                // the closest entry's distance.
                 let reach = f64::from_bits(reference.0) * 1.5 + 1e-9;
                 let tested_any = |kernel: Kernel, blocks: bool| {
                     let mut seen = Vec::new();

@@ -679,7 +679,9 @@ fn min(a: f32, b: f32) -> f32 {
 /// The slab test of one box from its distances to the planes a ray enters
 /// (`near`, by axis) and leaves (`far`) through: whether the ray meets it
 /// before `limit`, and where it enters (0 for an origin inside). Every
-/// node test, scalar or vector, ends in these operations in this order.
+/// node test, scalar or vector, ends in these operations in this order
+/// (AVX2's closest-hit search in their exact complements: which lanes
+/// fail, NaN included).
 #[inline(always)]
 fn slab(near: [f32; 3], far: [f32; 3], limit: f32) -> (bool, f32) {
     // Paired so that the vector forms wait on fewer steps in a row (the
