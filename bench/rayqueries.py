@@ -2,7 +2,7 @@
 """Ray queries from Python: prism.RayScene against embreex (Embree 4) and
 Open3D's RaycastingScene, on the same meshes and the same rays, in one run.
 
-Meshes: the Stanford bunny (npm package `bunny`, 4,968 triangles, as
+Meshes: the Stanford bunny (npm package `bunny`, 3,674 triangles, as
 bench/meshes.py gets it) and the 1M-triangle terrain of bench/meshes.py.
 Rays: 1M coherent (a 1000x1000 pinhole camera, row by row) and 1M
 incoherent (origins uniform in the mesh's box, directions uniform). For each
@@ -13,8 +13,9 @@ on 1 and 2 threads (embreex has no thread count: it traces on the calling
 thread, so its 2-thread cells are empty; Embree has no counting query),
 from wall time, and the CPU time of all the process's threads per 1M rays
 (on two threads the work a query costs, whatever its threads waited).
-Each measurement is taken in rounds that alternate the engines; the table
-gives the range over the rounds.
+Each measurement is taken in rounds that alternate the engines, after an
+untimed warm-up round of every engine and query; the table gives the range
+over the rounds.
 
 Then pbrt-v4's watertightness test: 10M rays (a third per mesh) from
 random points inside a randomly perturbed icosphere, the bunny (closed:
@@ -25,7 +26,7 @@ same rays (float32, as the others take them) go to each engine.
 Set-up: bench/.venv (benchenv) with embreex, numpy and open3d-cpu from
 PyPI; this tree's package is installed there with `pip install ./python`
 (--no-install skips that).
-Usage: python3 bench/rayqueries.py [--rounds N] [--rays N] [--no-install]
+Usage: python3 bench/rayqueries.py [--rounds N] [--warmup 0|1] [--rays N] [--no-install]
            [--meshes bunny,bunny940k,terrain] [--watertight-rays N (0: none)]
        python3 bench/rayqueries.py --dump DIR   (the meshes and rays as raw
        f64/u32 files for examples/rayquerybench.rs, Prism's side in Rust)
@@ -289,6 +290,8 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--rays", type=int, default=1_000_000)
+    parser.add_argument("--warmup", type=int, default=1, choices=(0, 1),
+                        help="an untimed round first (1) or not (0)")
     parser.add_argument("--watertight-rays", type=int, default=10_000_000,
                         help="in all, a third per mesh")
     parser.add_argument("--no-install", action="store_true")
@@ -320,13 +323,18 @@ def main():
         times = {}
         cpu = {}
         answers = {}
-        for r in range(args.rounds):
+        # Round -1 is a warm-up, untimed: a process's first query of a kind
+        # faults in its answers' memory and its code (Prism's first 1M-ray
+        # nearest-hit query took 65-140 ms where later ones took 53), and
+        # would charge that to whichever engine happens to go first.
+        for r in range(-args.warmup, args.rounds):
             order = ENGINES if r % 2 == 0 else ENGINES[::-1]
             built = {}
             for e in order:
                 start = time.perf_counter()
                 built[e] = CLASSES[e](v, f)
-                build[e].append(time.perf_counter() - start)
+                if r >= 0:
+                    build[e].append(time.perf_counter() - start)
             for kind, (o, d) in rays.items():
                 prepared = {e: built[e].prepare(o, d) for e in ENGINES}
                 for query in ("closest", "any", "count"):
@@ -336,7 +344,7 @@ def main():
                             out = getattr(built[e], query)(prepared[e], threads)
                             elapsed = time.perf_counter() - start
                             used = time.process_time() - start_cpu
-                            if out is None:
+                            if out is None or r < 0:
                                 continue
                             times.setdefault((kind, query, threads, e), []).append(elapsed)
                             cpu.setdefault((kind, query, threads, e), []).append(used)
