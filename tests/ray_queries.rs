@@ -14,6 +14,7 @@ use std::sync::atomic::AtomicBool;
 
 use glam::{DAffine3, DMat4, DVec3};
 use prism::accel::{Aggregate, Primitive, Shape};
+use prism::geometry::nearest::{NearestOnTriangle, nearest_on_triangle};
 use prism::geometry::triangle::{WatertightRay, triangle_hit};
 use prism::geometry::{Mesh, MeshData, MeshInstance};
 use prism::math::{Ray, Transform};
@@ -1201,6 +1202,21 @@ fn bad_arguments_name_themselves() {
         scene.contains(&o, &options(1)).unwrap_err(),
         QueryError::NotClosed { mesh: 0 }
     );
+    for bad in [
+        &[0.0; 4][..],
+        &[],
+        &[0.0, f64::NAN, 0.0],
+        &[f64::INFINITY, 0.0, 0.0],
+    ] {
+        assert_eq!(
+            argument(scene.closest_point(bad, &options(1)).unwrap_err()),
+            "points"
+        );
+    }
+    assert_eq!(
+        argument(scene.closest_point(&o, &options(0)).unwrap_err()),
+        "threads"
+    );
     let hits = scene.intersect(&batch, &options(1)).unwrap();
     assert_eq!((hits.t[0], hits.triangle_id[0]), (1.0, 0));
 }
@@ -1283,6 +1299,136 @@ fn a_raised_cancel_flag_stops_a_query() {
         scene.all_intersections(&batch, &cancel).unwrap_err(),
         QueryError::Cancelled
     );
+    assert_eq!(
+        scene.closest_point(&o, &cancel).unwrap_err(),
+        QueryError::Cancelled
+    );
+}
+
+/// The nearest surface point by brute force: every triangle of every mesh
+/// (corners placed in world space), the first mesh, then the first
+/// triangle, of those equally near.
+fn brute_nearest(
+    meshes: &[(Soup, Option<Transform>)],
+    p: DVec3,
+) -> (usize, usize, NearestOnTriangle) {
+    let mut best: Option<(usize, usize, NearestOnTriangle)> = None;
+    for (id, (soup, transform)) in meshes.iter().enumerate() {
+        for (i, corners) in soup.triangles().into_iter().enumerate() {
+            let corners = match transform {
+                None => corners,
+                Some(t) => corners.map(|c| t.to_world.transform_point3(c)),
+            };
+            let near = nearest_on_triangle(p, corners);
+            if best.is_none_or(|(_, _, b)| near.distance_squared < b.distance_squared) {
+                best = Some((id, i, near));
+            }
+        }
+    }
+    best.unwrap()
+}
+
+/// Points near the meshes, far from them, on their triangles (so at
+/// distance 0, where several triangles of a shared corner tie) and on a
+/// fine grid (ties between parallel faces): the query's answers equal
+/// brute force's bit for bit, on one thread and two.
+#[test]
+fn closest_point_equals_brute_force() {
+    let mut rng = Rng(21);
+    let (scene, meshes) = two_soups(&mut rng);
+    let mut points = Vec::new();
+    for k in 0..3000 {
+        let p = match k % 4 {
+            0 => DVec3::new(
+                rng.range(-2.0, 2.0),
+                rng.range(-2.0, 2.0),
+                rng.range(-2.0, 2.0),
+            ),
+            1 => rng.direction() * rng.range(5.0, 50.0),
+            2 => {
+                // A corner or a point on a triangle of the first mesh.
+                let t = meshes[0].0.triangles()[rng.below(300)];
+                let (u, v) = (rng.f(), rng.f());
+                let (u, v) = if u + v > 1.0 {
+                    (1.0 - u, 1.0 - v)
+                } else {
+                    (u, v)
+                };
+                if k % 8 == 2 {
+                    t[0]
+                } else {
+                    t[0] + (t[1] - t[0]) * u + (t[2] - t[0]) * v
+                }
+            }
+            _ => DVec3::new((k % 7) as f64, (k % 5) as f64, (k % 3) as f64) * 0.25 - 0.5,
+        };
+        points.extend(p.to_array());
+    }
+    let one = scene.closest_point(&points, &options(1)).unwrap();
+    let two = scene.closest_point(&points, &options(2)).unwrap();
+    assert_eq!(one, two);
+    for (k, p) in points.chunks_exact(3).enumerate() {
+        let (id, triangle, near) = brute_nearest(&meshes, DVec3::from_slice(p));
+        assert_eq!(
+            (one.mesh_id[k], one.triangle_id[k]),
+            (id as i64, triangle as i64),
+            "point {k} {p:?}"
+        );
+        assert_eq!(one.distance[k], near.distance_squared.sqrt());
+        assert_eq!(&one.point[3 * k..3 * k + 3], &near.point.to_array());
+        assert_eq!((one.u[k], one.v[k]), (near.u, near.v));
+    }
+    // A point on a triangle is at distance 0.
+    assert!(one.distance.iter().skip(2).step_by(8).all(|&d| d < 1e-15));
+}
+
+/// A unit cube's faces, seen from outside and inside: distances by hand.
+#[test]
+fn closest_point_of_a_cube_by_hand() {
+    let vertices: Vec<f64> = (0..8)
+        .flat_map(|i| [(i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64])
+        .collect();
+    let faces = [
+        0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6,
+        1, 3, 5, 3, 7, 5,
+    ];
+    let mut scene = RayScene::new();
+    scene.add_mesh(&vertices, &faces, None).unwrap();
+    // Inside, nearest the x = 0 face; beyond the corner (1, 1, 1); over
+    // the edge x = 1, y = 0; straight above the top face; the single-
+    // precision form of the first.
+    let points = [0.2, 0.5, 0.4, 2.0, 3.0, 1.5, 1.5, -2.0, 0.5, 0.25, 0.5, 4.0];
+    let near = scene.closest_point(&points, &options(1)).unwrap();
+    let expect = [
+        ([0.0, 0.5, 0.4], 0.2),
+        ([1.0, 1.0, 1.0], (1.0f64 + 4.0 + 0.25).sqrt()),
+        ([1.0, 0.0, 0.5], (0.25f64 + 4.0).sqrt()),
+        ([0.25, 0.5, 1.0], 3.0),
+    ];
+    for (k, (point, distance)) in expect.into_iter().enumerate() {
+        assert_eq!(&near.point[3 * k..3 * k + 3], &point, "point {k}");
+        assert!((near.distance[k] - distance).abs() < 1e-15, "point {k}");
+        let [a, b, c] = [0, 1, 2].map(|i| faces[3 * near.triangle_id[k] as usize + i] as usize);
+        let corner = |i: usize| DVec3::from_slice(&vertices[3 * i..]);
+        let (u, v) = (near.u[k], near.v[k]);
+        let q = corner(a) * (1.0 - u - v) + corner(b) * u + corner(c) * v;
+        assert!(
+            (q - DVec3::from_slice(&point)).length() < 1e-15,
+            "point {k}"
+        );
+    }
+    let single: Vec<f32> = points.iter().map(|&x| x as f32).collect();
+    let widened: Vec<f64> = single.iter().map(|&x| f64::from(x)).collect();
+    assert_eq!(
+        scene.closest_point(&single, &options(1)).unwrap(),
+        scene.closest_point(&widened, &options(1)).unwrap()
+    );
+    // A scene with no mesh has no nearest point.
+    let empty = RayScene::new()
+        .closest_point(&points[..3], &options(1))
+        .unwrap();
+    assert_eq!((empty.mesh_id[0], empty.distance[0]), (-1, f64::INFINITY));
+    assert!(empty.point[0].is_nan());
 }
 
 #[test]

@@ -336,6 +336,34 @@ impl RayScene {
         })?;
         Ok(inside.into_pyarray(py).into_any())
     }
+
+    /// The nearest surface point to each point, as a dict of arrays:
+    /// point (N×3), distance, mesh_id, triangle_id, u, v.
+    #[pyo3(signature = (points, threads=None))]
+    fn closest_point<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        threads: Option<i64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let scene = self.current()?;
+        let p = Coords::of("points", points)?;
+        let p = p.coordinates()?;
+        let near = run(py, p.len() / 3, threads_arg(threads)?, |options| {
+            scene.closest_point(p, options)
+        })?;
+        let n = near.distance.len();
+        let point = numpy::ndarray::Array2::from_shape_vec((n, 3), near.point)
+            .map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
+        let out = PyDict::new(py);
+        out.set_item("point", point.into_pyarray(py))?;
+        out.set_item("distance", near.distance.into_pyarray(py))?;
+        out.set_item("mesh_id", near.mesh_id.into_pyarray(py))?;
+        out.set_item("triangle_id", near.triangle_id.into_pyarray(py))?;
+        out.set_item("u", near.u.into_pyarray(py))?;
+        out.set_item("v", near.v.into_pyarray(py))?;
+        Ok(out)
+    }
 }
 
 fn poisoned() -> PyErr {

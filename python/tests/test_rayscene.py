@@ -186,6 +186,66 @@ def test_meshes_ids_and_transforms():
     assert (ha["mesh_id"] == 1).sum() > 20
 
 
+def brute_distance(v, f, p):
+    """Distance from each point to the nearest triangle, by a formulation
+    of its own: the projection onto each triangle's plane where it falls
+    inside, else the nearest of the three edges (segments)."""
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    n = np.cross(b - a, c - a)
+    n2 = np.einsum("ij,ij->i", n, n)
+
+    def segment(p, x, y):
+        e = y - x
+        s = np.clip(np.einsum("ij,ij->i", p - x, e) / np.einsum("ij,ij->i", e, e), 0, 1)
+        return np.linalg.norm(p - (x + s[:, None] * e), axis=1)
+
+    out = []
+    for q in p:
+        w = q - a
+        h = np.einsum("ij,ij->i", w, n) / n2
+        x = q - h[:, None] * n
+        inside = np.ones(len(f), bool)
+        for p0, p1 in ((a, b), (b, c), (c, a)):
+            inside &= np.einsum("ij,ij->i", np.cross(p1 - p0, x - p0), n) >= 0
+        plane = np.where(inside, np.abs(h) * np.sqrt(n2), np.inf)
+        edges = np.minimum(np.minimum(segment(q, a, b), segment(q, b, c)), segment(q, c, a))
+        out.append(np.minimum(plane, edges).min())
+    return np.array(out)
+
+
+def test_closest_point_equals_brute_force():
+    v, f = random_soup(150, 11)
+    m = np.array([[0, -2, 0, 0.5], [1, 0, 0, 0.1], [0, 0, 1.5, -0.2], [0, 0, 0, 1]], float)
+    scene = prism.RayScene()
+    scene.add_mesh(v, f)
+    scene.add_mesh(v, f, transform=m)
+    moved = v @ m[:3, :3].T + m[:3, 3]
+    rng = np.random.default_rng(12)
+    p = np.concatenate([rng.uniform(-3, 3, size=(300, 3)), v[:20] + 1e-9])
+    near = scene.closest_point(p)
+    assert near["point"].shape == (len(p), 3) and near["distance"].shape == (len(p),)
+    both = np.concatenate([v, moved]), np.concatenate([f, f + len(v)])
+    np.testing.assert_allclose(near["distance"], brute_distance(*both, p), rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(np.linalg.norm(p - near["point"], axis=1), near["distance"],
+                               rtol=1e-12, atol=1e-15)
+    # The point lies on the triangle named, at its barycentric weights.
+    corners = np.where(near["mesh_id"][:, None, None] == 0, v[f[near["triangle_id"]]],
+                       moved[f[near["triangle_id"]]])
+    u, w = near["u"][:, None], near["v"][:, None]
+    np.testing.assert_allclose((1 - u - w) * corners[:, 0] + u * corners[:, 1] + w * corners[:, 2],
+                               near["point"], atol=1e-12)
+    assert set(np.unique(near["mesh_id"])) == {0, 1}
+    # The same on any thread count, and from float32 points as from
+    # their float64 values.
+    again = scene.closest_point(p, threads=2)
+    for k in near:
+        np.testing.assert_array_equal(near[k], again[k])
+    single = p.astype(np.float32)
+    a, b = scene.closest_point(single), scene.closest_point(single.astype(np.float64))
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k])
+
+
 def test_contains_and_watertightness():
     v, f = icosphere(3, jitter=0.1, seed=5)
     scene = prism.RayScene(v, f)
@@ -357,6 +417,10 @@ BAD = [
     ("points NaN", lambda s, v, f, o, d: s.contains(o * np.nan), "points"),
     ("points empty", lambda s, v, f, o, d: s.contains(o[:0]), "points"),
     ("contains open mesh", lambda s, v, f, o, d: prism.RayScene(v, f[1:]).contains(o), "contains"),
+    ("closest points NaN", lambda s, v, f, o, d: s.closest_point(o * np.nan), "points"),
+    ("closest points shape", lambda s, v, f, o, d: s.closest_point(o[:, :2]), "points"),
+    ("closest points empty", lambda s, v, f, o, d: s.closest_point(o[:0]), "points"),
+    ("closest threads", lambda s, v, f, o, d: s.closest_point(o, threads=0), "threads"),
     # The extension itself, past the package's conversions.
     ("raw strided origins", lambda s, v, f, o, d: s._scene.intersect(np.asfortranarray(o), d, 0.0,
                                                                       np.inf, None), "origins"),

@@ -278,6 +278,19 @@ impl Bvh {
         }
     }
 
+    /// Visits the item positions of the leaves that may hold an item within
+    /// `reach`, nearest box first (see `wide::nearest_items`): for nearest
+    /// point queries. Returns the final reach.
+    pub fn nearest_items(
+        &self,
+        stack: &mut Vec<(f64, u32, u16)>,
+        reach: f64,
+        lower: impl Fn(&Aabb) -> f64,
+        test: impl FnMut(usize, f64) -> f64,
+    ) -> f64 {
+        wide::nearest_items(&self.wide, stack, reach, lower, test)
+    }
+
     /// Visits the item positions in every leaf whose box passes `keep`,
     /// descending only into boxes that pass it; stops and returns false as
     /// soon as `visit` does.

@@ -678,6 +678,55 @@ pub fn any<L: Lanes>(
     }
 }
 
+/// Visits the item positions of every leaf whose box may hold an item
+/// within `reach`, the boxes met at each node nearest first: `lower(box)`
+/// bounds from below the distance (in any monotone measure, such as its
+/// square) of anything in the box, and `test(position, reach)` returns the
+/// reach it leaves (lowered once an item is found within it). A box whose
+/// bound exceeds the reach at the time it is taken up is skipped. `stack`
+/// is cleared first. Returns the final reach.
+pub fn nearest_items(
+    wide: &[WideNode],
+    stack: &mut Vec<(f64, u32, u16)>,
+    mut reach: f64,
+    lower: impl Fn(&crate::geometry::Aabb) -> f64,
+    mut test: impl FnMut(usize, f64) -> f64,
+) -> f64 {
+    stack.clear();
+    if wide.is_empty() {
+        return reach;
+    }
+    stack.push((f64::NEG_INFINITY, 0, 0));
+    while let Some((bound, child, count)) = stack.pop() {
+        if bound > reach {
+            continue;
+        }
+        if count > 0 {
+            let start = child as usize;
+            for position in start..start + usize::from(count) {
+                reach = test(position, reach);
+            }
+            continue;
+        }
+        let node = &wide[child as usize];
+        let mut met = ArrayVec::<(f64, u32, u16), WIDTH>::new();
+        for lane in 0..WIDTH {
+            if node.valid & (1 << lane) == 0 {
+                continue;
+            }
+            let bound = lower(&node.lane_box(lane));
+            if bound <= reach {
+                met.push((bound, node.child[lane], node.count[lane]));
+            }
+        }
+        // Farthest pushed first, so the nearest is taken up next (a stable
+        // sort: equal bounds keep their lane order).
+        met.sort_by(|x, y| y.0.total_cmp(&x.0));
+        stack.extend(met);
+    }
+    reach
+}
+
 /// Visits, in no particular order, the item positions of every leaf whose
 /// box passes `keep`, descending only into boxes that pass it. Stops and
 /// returns false as soon as `visit` returns false.

@@ -2,10 +2,11 @@
 //! over the triangles, smooth (interpolated) or flat normals, texture
 //! coordinates and per-triangle materials.
 
-use glam::{DVec2, DVec3};
+use glam::{DAffine3, DVec2, DVec3};
 use thiserror::Error;
 
 use super::Aabb;
+use super::nearest::{NearestOnTriangle, nearest_on_triangle};
 use super::terminator::terminator_offset;
 use super::triangle::{
     TriangleHit, WatertightLanes, WatertightRay, triangle_hit, triangle_hit_as,
@@ -352,6 +353,63 @@ impl Mesh {
             visit(order[position], self.corners(position));
             true
         });
+    }
+
+    /// The point of the mesh nearest `p`, placed by `to_world` (object to
+    /// world; `None`: as it is), where its squared distance in world space
+    /// is at most `reach`: the triangle's index (in the [`MeshData`]) and
+    /// its nearest point (in world space). Of triangles equally near, the
+    /// first in the mesh's own order, whatever order the tree gives them
+    /// in. `stack` is the traversal's, reused between calls.
+    pub fn nearest_point(
+        &self,
+        p: DVec3,
+        reach: f64,
+        to_world: Option<&DAffine3>,
+        stack: &mut Vec<(f64, u32, u16)>,
+    ) -> Option<(u32, NearestOnTriangle)> {
+        let order = self.bvh.order();
+        let mut best: Option<(u32, NearestOnTriangle)> = None;
+        self.bvh.nearest_items(
+            stack,
+            reach,
+            |b| {
+                let b = match to_world {
+                    None => *b,
+                    Some(m) => world_box(b, m),
+                };
+                // Taken down by more than the rounding of a nearest point
+                // computed in the box and of its distance, so that the
+                // bound never exceeds what a triangle inside gives.
+                let slack = p.abs().max(b.min.abs()).max(b.max.abs()) * (64.0 * f64::EPSILON);
+                let d = (b.min - p - slack).max(p - b.max - slack).max(DVec3::ZERO);
+                d.length_squared() * (1.0 - 8.0 * f64::EPSILON)
+            },
+            |position, reach| {
+                let corners = self.corners(position);
+                let corners = match to_world {
+                    None => corners,
+                    Some(m) => corners.map(|c| m.transform_point3(c)),
+                };
+                let near = nearest_on_triangle(p, corners);
+                let index = order[position];
+                let better = match best {
+                    _ if near.distance_squared > reach => false,
+                    None => true,
+                    Some((held, h)) => {
+                        near.distance_squared < h.distance_squared
+                            || (near.distance_squared == h.distance_squared && index < held)
+                    }
+                };
+                if better {
+                    best = Some((index, near));
+                    near.distance_squared
+                } else {
+                    reach
+                }
+            },
+        );
+        best
     }
 
     /// Calls `each` with the index (in the [`MeshData`]) and hit of every
@@ -976,6 +1034,26 @@ impl Mesh {
             barycentric: h.barycentric,
             normal: facet_normal(self.corners(triangle)),
         }
+    }
+}
+
+/// A world-space box holding object-space box `b` placed by `m`: the
+/// centre mapped and the half extents through |M|, widened by more than
+/// the rounding of either.
+fn world_box(b: &Aabb, m: &DAffine3) -> Aabb {
+    let centre = (b.min + b.max) * 0.5;
+    let half = (b.max - b.min) * 0.5;
+    let abs = glam::DMat3::from_cols(
+        m.matrix3.x_axis.abs(),
+        m.matrix3.y_axis.abs(),
+        m.matrix3.z_axis.abs(),
+    );
+    let c = m.transform_point3(centre);
+    let rounding = (abs * (centre.abs() + half) + m.translation.abs()) * (16.0 * f64::EPSILON);
+    let h = abs * half + rounding + DVec3::splat(f64::MIN_POSITIVE);
+    Aabb {
+        min: c - h,
+        max: c + h,
     }
 }
 

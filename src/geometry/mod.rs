@@ -9,6 +9,7 @@ pub mod disc;
 pub mod hit;
 pub mod instance;
 pub mod mesh;
+pub mod nearest;
 pub mod plane;
 pub mod polygon;
 pub mod span;

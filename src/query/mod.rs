@@ -19,7 +19,10 @@
 //! - [`RayScene::count_intersections`], [`RayScene::all_intersections`]:
 //!   every triangle the ray hits in (t_min, t_max), sorted by t;
 //! - [`RayScene::contains`]: inside/outside of closed meshes by crossing
-//!   parity, certified exact (see [`contains`](mod@contains)).
+//!   parity, certified exact (see [`contains`](mod@contains));
+//! - [`RayScene::closest_point`]: the nearest surface point to each point
+//!   (distance, mesh, triangle, barycentric u and v; see
+//!   [`closest`](mod@closest)).
 //!
 //! ```
 //! use prism::query::{QueryOptions, RayScene, Rays};
@@ -39,8 +42,14 @@
 //! assert_eq!(again, hits);
 //! let inside = scene.contains(&[0.1, 0.1, 0.1, 1.0, 1.0, 1.0], &QueryOptions::default());
 //! assert_eq!(inside.unwrap(), [true, false]);
+//! // (1, 1, 1) is nearest the face on x + y + z = 1, at its centre.
+//! let near = scene.closest_point(&[1.0, 1.0, 1.0], &QueryOptions::default()).unwrap();
+//! assert_eq!(near.triangle_id[0], 3);
+//! assert!((near.distance[0] - 2.0 / 3f64.sqrt()).abs() < 1e-15);
+//! assert!((near.point[0] - 1.0 / 3.0).abs() < 1e-15);
 //! ```
 
+pub mod closest;
 pub mod contains;
 mod order;
 pub mod rays;
@@ -50,6 +59,7 @@ mod trace;
 
 use thiserror::Error;
 
+pub use closest::NearestPoints;
 pub use rays::{Coordinates, Crossings, Hits, HitsMut, QueryOptions, Rays};
 pub use scene::RayScene;
 

@@ -123,3 +123,6 @@ class RayScene:
     def contains(
         self, points: npt.NDArray[Any], threads: Optional[int] = None
     ) -> npt.NDArray[np.bool_]: ...
+    def closest_point(
+        self, points: npt.NDArray[Any], threads: Optional[int] = None
+    ) -> Dict[str, npt.NDArray[Any]]: ...

@@ -233,6 +233,19 @@ class RayScene:
         boundary. The answer depends on the point alone."""
         return self._scene.contains(_coords("points", points), _threads(threads))
 
+    def closest_point(self, points: ArrayLike, threads: Optional[int] = None
+                      ) -> Dict[str, np.ndarray]:
+        """The point of the meshes nearest each point, in world space, as a
+        dict of arrays: ``point`` ((N, 3) float64), ``distance`` (float64),
+        ``mesh_id`` and ``triangle_id`` (int64; the triangle's row in its
+        mesh's ``faces``), ``u`` and ``v`` (barycentric: the point is
+        ``(1-u-v)*a + u*b + v*c``). Of points equally near, the one on the
+        lowest mesh id, then on the first triangle in its ``faces``, so the
+        answer depends on the point alone. Computed in double precision
+        (each triangle's nearest point by the region of its plane the point
+        projects into); meshes need not be closed."""
+        return self._scene.closest_point(_coords("points", points), _threads(threads))
+
     def __repr__(self) -> str:
         return (f"RayScene({self.mesh_count} meshes, {self.triangle_count} triangles, "
                 f"{self.memory_bytes / 2**20:.1f} MiB)")
