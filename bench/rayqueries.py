@@ -13,8 +13,12 @@ on 1 and 2 threads (embreex has no thread count: it traces on the calling
 thread, so its 2-thread cells are empty; Embree has no counting query),
 from wall time, and the CPU time of all the process's threads per 1M rays
 (on two threads the work a query costs, whatever its threads waited).
+Then the closest-point query (--points, 20,000 by default: uniform in the
+mesh's box, and near its surface) against Open3D's compute_closest_points
+(embreex has none), on 1 and 2 threads, with the largest difference in
+distance between the two (Open3D works in float32).
 Each measurement is taken in rounds that alternate the engines, after an
-untimed warm-up round of every engine and query; the table gives the range
+untimed warm-up round of every engine and query; the tables give the range
 over the rounds.
 
 Then pbrt-v4's watertightness test: 10M rays (a third per mesh) from
@@ -26,7 +30,7 @@ same rays (float32, as the others take them) go to each engine.
 Set-up: bench/.venv (benchenv) with embreex, numpy and open3d-cpu from
 PyPI; this tree's package is installed there with `pip install ./python`
 (--no-install skips that).
-Usage: python3 bench/rayqueries.py [--rounds N] [--warmup 0|1] [--rays N] [--no-install]
+Usage: python3 bench/rayqueries.py [--rounds N] [--warmup 0|1] [--rays N] [--points N] [--no-install]
            [--meshes bunny,bunny940k,terrain] [--watertight-rays N (0: none)]
        python3 bench/rayqueries.py --dump DIR   (the meshes and rays as raw
        f64/u32 files for examples/rayquerybench.rs, Prism's side in Rust)
@@ -100,6 +104,16 @@ def random_rays(v, n, seed):
     return o.astype(np.float32), d.astype(np.float32)
 
 
+def query_points(v, n, seed):
+    """Points for the closest-point query: uniform in the mesh's box, and
+    near its surface (a vertex moved by up to 1% of the box's diagonal)."""
+    rng = np.random.default_rng(seed + 100)
+    lo, hi = v.min(0), v.max(0)
+    size = np.linalg.norm(hi - lo)
+    near = v[rng.integers(0, len(v), n)] + rng.uniform(-0.01, 0.01, size=(n, 3)) * size / np.sqrt(3)
+    return {"scattered": rng.uniform(lo, hi, size=(n, 3)), "near": near}
+
+
 class Prism:
     name = "prism"
 
@@ -119,6 +133,9 @@ class Prism:
 
     def count(self, rays, threads):
         return self.scene.count_intersections(*rays, threads=threads)
+
+    def closest_point(self, points, threads):
+        return self.scene.closest_point(points.astype(np.float64), threads=threads)["point"]
 
     def memory(self):
         return self.scene.memory_bytes
@@ -150,6 +167,9 @@ class Embree:
     def count(self, rays, threads):
         return None
 
+    def closest_point(self, points, threads):
+        return None  # embreex has no point queries
+
 
 class Open3D:
     name = "open3d"
@@ -172,6 +192,11 @@ class Open3D:
 
     def count(self, rays, threads):
         return self.scene.count_intersections(rays, nthreads=threads).numpy()
+
+    def closest_point(self, points, threads):
+        import open3d as o3d
+        p = o3d.core.Tensor(points.astype(np.float32))
+        return self.scene.compute_closest_points(p, nthreads=threads)["points"].numpy()
 
 
 CLASSES = {"prism": Prism, "embree": Embree, "open3d": Open3D}
@@ -290,6 +315,8 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--rays", type=int, default=1_000_000)
+    parser.add_argument("--points", type=int, default=20_000,
+                        help="points per closest-point query (0: none)")
     parser.add_argument("--warmup", type=int, default=1, choices=(0, 1),
                         help="an untimed round first (1) or not (0)")
     parser.add_argument("--watertight-rays", type=int, default=10_000_000,
@@ -319,6 +346,7 @@ def main():
         mem = {e: [b / len(f) for b in peak_memory(e, os.path.join(tmp, "v.npy"), os.path.join(tmp, "f.npy"))]
                for e in ENGINES}
         rays = {"coherent": camera_rays(v, args.rays), "incoherent": random_rays(v, args.rays, seed)}
+        points = query_points(v, args.points, seed) if args.points else {}
         build = {e: [] for e in ENGINES}
         times = {}
         cpu = {}
@@ -349,6 +377,16 @@ def main():
                             times.setdefault((kind, query, threads, e), []).append(elapsed)
                             cpu.setdefault((kind, query, threads, e), []).append(used)
                             answers[(kind, query, e)] = out
+            for kind, p in points.items():
+                for threads in (1, 2):
+                    for e in order:
+                        start = time.perf_counter()
+                        out = built[e].closest_point(p, threads)
+                        elapsed = time.perf_counter() - start
+                        if out is None or r < 0:
+                            continue
+                        times.setdefault((kind, "closest point", threads, e), []).append(elapsed)
+                        answers[(kind, "closest point", e)] = np.linalg.norm(out - p, axis=1)
             del built
         # How far the engines agree (float32 engines see the same mesh and rays).
         agree = {}
@@ -357,13 +395,16 @@ def main():
             for e, miss in (("embree", lambda x: x >= 0), ("open3d", lambda x: x != 4294967295)):
                 if (kind, "closest", e) in answers:
                     agree[(kind, e)] = float(np.mean(miss(answers[(kind, "closest", e)]) == p))
-        results.append((name, len(f), build, mem, times, cpu, agree))
+        near = {kind: float(np.max(np.abs(answers[(kind, "closest point", "open3d")]
+                                          - answers[(kind, "closest point", "prism")])))
+                for kind in points}
+        results.append((name, len(f), build, mem, times, cpu, agree, points, near))
     print()
     print("| mesh | triangles | engine | build s | bytes/tri peak, kept | ray kind | query | Mrays/s 1 thread | Mrays/s 2 threads "
           "| prism/engine 1 thread | prism/engine 2 threads | CPU s per 1M rays, 1 thread | CPU s per 1M rays, 2 threads "
           "| prism/engine by CPU, 2 threads |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-    for name, tris, build, mem, times, cpu, agree in results:
+    for name, tris, build, mem, times, cpu, agree, _, _ in results:
         for kind in ("coherent", "incoherent"):
             for query in ("closest", "any", "count"):
                 for e in ENGINES:
@@ -389,6 +430,22 @@ def main():
                           f"| {ratios[0]} | {ratios[1]} | {cpu_cells[0]} | {cpu_cells[1]} | {cpu_ratio} |")
         print(f"hit/miss agreement with prism on {name}: " +
               ", ".join(f"{k[1]} {k[0]} {v:.6f}" for k, v in agree.items()))
+    if args.points:
+        print()
+        print(f"Closest point: {args.points:,} points a query ('scattered': uniform in the mesh's box; "
+              "'near': within 1% of its size from a vertex), Prism against Open3D's compute_closest_points")
+        print("| mesh | points | Prism Mpoints/s 1 thread | Prism/Open3D 1 thread | Prism Mpoints/s 2 threads "
+              "| Prism/Open3D 2 threads | largest distance difference |")
+        print("|---|---|---|---|---|---|---|")
+        for name, _, _, _, times, _, _, points, near in results:
+            for kind in points:
+                cells = []
+                for threads in (1, 2):
+                    ps = times[(kind, "closest point", threads, "prism")]
+                    os_ = times[(kind, "closest point", threads, "open3d")]
+                    cells += [rng_range([args.points / t / 1e6 for t in ps]),
+                              rng_range([o / p for p, o in zip(ps, os_)]) + "x"]
+                print(f"| {name} | {kind} | {' | '.join(cells)} | {near[kind]:.1e} |")
     if args.watertight_rays == 0:
         return
     print()

@@ -66,7 +66,9 @@ fn main() {
                     .iter()
                     .any(|t| format!("{mesh} {kind} {query} {t}t").contains(&filter))
             })
-        });
+        }) || point_rows(mesh)
+            .iter()
+            .any(|(name, ..)| name.contains(&filter));
         if !matches {
             continue;
         }
@@ -81,6 +83,9 @@ fn main() {
             Rays::new(&o, &d, 0.0, f64::INFINITY).unwrap();
             if filter.is_empty() || "check".contains(&filter) {
                 println!("{mesh} {kind} check: {:.4}", cpu_seconds() - start);
+            }
+            if kind == "incoherent" {
+                closest_point_rows(&scene, mesh, &v, rounds, &filter);
             }
             for query in ["nearest", "any", "count"] {
                 for threads in [1, 2] {
@@ -155,5 +160,87 @@ fn main() {
                 }
             }
         }
+    }
+}
+
+/// The closest-point rows of `mesh`: name, point kind, threads.
+fn point_rows(mesh: &str) -> Vec<(String, &'static str, usize)> {
+    let mut rows = Vec::new();
+    for kind in ["scattered", "near"] {
+        for threads in [1, 2] {
+            rows.push((
+                format!("{mesh} {kind} closest point {threads}t"),
+                kind,
+                threads,
+            ));
+        }
+    }
+    rows
+}
+
+/// Closest points of 20,000 points: uniform in the mesh's box
+/// (`scattered`), or a vertex moved by up to 1 % of the box's diagonal
+/// (`near`), as `bench/rayqueries.py` makes them (other draws).
+fn closest_point_rows(scene: &RayScene, mesh: &str, v: &[f64], rounds: usize, filter: &str) {
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut uniform = || {
+        state = prism::math::rng::splitmix64(state);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for p in v.chunks_exact(3) {
+        for i in 0..3 {
+            lo[i] = lo[i].min(p[i]);
+            hi[i] = hi[i].max(p[i]);
+        }
+    }
+    let size = (0..3).map(|i| (hi[i] - lo[i]).powi(2)).sum::<f64>().sqrt();
+    let n = 20_000;
+    let mut scattered = Vec::with_capacity(3 * n);
+    let mut near = Vec::with_capacity(3 * n);
+    for _ in 0..n {
+        for i in 0..3 {
+            scattered.push(lo[i] + (hi[i] - lo[i]) * uniform());
+        }
+        let k = ((uniform() * (v.len() / 3) as f64) as usize).min(v.len() / 3 - 1);
+        for i in 0..3 {
+            near.push(v[3 * k + i] + (uniform() * 0.02 - 0.01) * size / 3f64.sqrt());
+        }
+    }
+    for (name, kind, threads) in point_rows(mesh) {
+        if !name.contains(filter) {
+            continue;
+        }
+        let points = if kind == "near" { &near } else { &scattered };
+        let options = QueryOptions {
+            threads: Some(threads),
+            cancel: None,
+        };
+        let (mut times, mut walls, mut hash) = (Vec::new(), Vec::new(), 0);
+        for _ in 0..rounds {
+            let start = cpu_seconds();
+            let wall = Instant::now();
+            let near = scene.closest_point(points.as_slice(), &options).unwrap();
+            times.push(cpu_seconds() - start);
+            walls.push(wall.elapsed().as_secs_f64());
+            let mut h = DefaultHasher::new();
+            for x in [&near.point, &near.distance, &near.u, &near.v] {
+                x.iter().for_each(|x| x.to_bits().hash(&mut h));
+            }
+            near.mesh_id.hash(&mut h);
+            near.triangle_id.hash(&mut h);
+            hash = h.finish();
+        }
+        let show = |v: &[f64]| {
+            v.iter()
+                .map(|t| format!("{t:.4}"))
+                .collect::<Vec<_>>()
+                .join(" ")
+        };
+        println!(
+            "{name}: cpu {} wall {} hash {hash:016x}",
+            show(&times),
+            show(&walls)
+        );
     }
 }

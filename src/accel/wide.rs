@@ -709,20 +709,21 @@ pub fn nearest_items(
             continue;
         }
         let node = &wide[child as usize];
-        let mut met = ArrayVec::<(f64, u32, u16), WIDTH>::new();
+        // Pushed farthest first, so that the nearest is taken up next: each
+        // box met inserted below those nearer than it (equal bounds keep
+        // their lane order).
+        let base = stack.len();
         for lane in 0..WIDTH {
-            if node.valid & (1 << lane) == 0 {
+            let bound = lower(&node.lane_box(lane));
+            if node.valid & (1 << lane) == 0 || bound > reach {
                 continue;
             }
-            let bound = lower(&node.lane_box(lane));
-            if bound <= reach {
-                met.push((bound, node.child[lane], node.count[lane]));
+            let mut at = stack.len();
+            while at > base && stack[at - 1].0 < bound {
+                at -= 1;
             }
+            stack.insert(at, (bound, node.child[lane], node.count[lane]));
         }
-        // Farthest pushed first, so the nearest is taken up next (a stable
-        // sort: equal bounds keep their lane order).
-        met.sort_by(|x, y| y.0.total_cmp(&x.0));
-        stack.extend(met);
     }
     reach
 }

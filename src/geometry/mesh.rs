@@ -370,6 +370,15 @@ impl Mesh {
     ) -> Option<(u32, NearestOnTriangle)> {
         let order = self.bvh.order();
         let mut best: Option<(u32, NearestOnTriangle)> = None;
+        // Each box's bound is taken down by more than the rounding of a
+        // nearest point computed in it (its coordinates within the mesh's
+        // bounds) and of its distance, so that the bound never exceeds what
+        // a triangle inside gives.
+        let bounds = match to_world {
+            None => self.bounds(),
+            Some(m) => world_box(&self.bounds(), m),
+        };
+        let slack = p.abs().max(bounds.min.abs()).max(bounds.max.abs()) * (64.0 * f64::EPSILON);
         self.bvh.nearest_items(
             stack,
             reach,
@@ -378,10 +387,6 @@ impl Mesh {
                     None => *b,
                     Some(m) => world_box(b, m),
                 };
-                // Taken down by more than the rounding of a nearest point
-                // computed in the box and of its distance, so that the
-                // bound never exceeds what a triangle inside gives.
-                let slack = p.abs().max(b.min.abs()).max(b.max.abs()) * (64.0 * f64::EPSILON);
                 let d = (b.min - p - slack).max(p - b.max - slack).max(DVec3::ZERO);
                 d.length_squared() * (1.0 - 8.0 * f64::EPSILON)
             },
