@@ -1377,6 +1377,16 @@ fn closest_point_equals_brute_force() {
         assert_eq!(one.distance[k], near.distance_squared.sqrt());
         assert_eq!(&one.point[3 * k..3 * k + 3], &near.point.to_array());
         assert_eq!((one.u[k], one.v[k]), (near.u, near.v));
+        // The normal as `intersect` gives it: the object-space facet
+        // normal, through the transform's normal matrix.
+        let (soup, transform) = &meshes[id];
+        let [a, b, c] = soup.triangles()[triangle];
+        let n = (b - a).cross(c - a).normalize_or_zero();
+        let n = match transform {
+            None => n,
+            Some(t) => (t.normal_to_world * n).normalize_or_zero(),
+        };
+        assert_eq!(&one.normal[3 * k..3 * k + 3], &n.to_array(), "point {k}");
     }
     // A point on a triangle is at distance 0.
     assert!(one.distance.iter().skip(2).step_by(8).all(|&d| d < 1e-15));
@@ -1416,7 +1426,12 @@ fn closest_point_of_a_cube_by_hand() {
             (q - DVec3::from_slice(&point)).length() < 1e-15,
             "point {k}"
         );
+        let n = (corner(b) - corner(a)).cross(corner(c) - corner(a));
+        assert_eq!(&near.normal[3 * k..3 * k + 3], &n.to_array(), "point {k}");
     }
+    // The faces are wound outwards: the x = 0 face's and the top's.
+    assert_eq!(&near.normal[..3], &[-1.0, 0.0, 0.0]);
+    assert_eq!(&near.normal[9..], &[0.0, 0.0, 1.0]);
     let single: Vec<f32> = points.iter().map(|&x| x as f32).collect();
     let widened: Vec<f64> = single.iter().map(|&x| f64::from(x)).collect();
     assert_eq!(
@@ -1429,6 +1444,7 @@ fn closest_point_of_a_cube_by_hand() {
         .unwrap();
     assert_eq!((empty.mesh_id[0], empty.distance[0]), (-1, f64::INFINITY));
     assert!(empty.point[0].is_nan());
+    assert_eq!(empty.normal, [0.0; 3]);
 }
 
 #[test]

@@ -338,7 +338,7 @@ impl RayScene {
     }
 
     /// The nearest surface point to each point, as a dict of arrays:
-    /// point (N×3), distance, mesh_id, triangle_id, u, v.
+    /// point (N×3), distance, mesh_id, triangle_id, u, v, normal (N×3).
     #[pyo3(signature = (points, threads=None))]
     fn closest_point<'py>(
         &self,
@@ -353,8 +353,11 @@ impl RayScene {
             scene.closest_point(p, options)
         })?;
         let n = near.distance.len();
-        let point = numpy::ndarray::Array2::from_shape_vec((n, 3), near.point)
-            .map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
+        let rows = |v: Vec<f64>| {
+            numpy::ndarray::Array2::from_shape_vec((n, 3), v)
+                .map_err(|e| PyRuntimeError::new_err(e.to_string()))
+        };
+        let (point, normal) = (rows(near.point)?, rows(near.normal)?);
         let out = PyDict::new(py);
         out.set_item("point", point.into_pyarray(py))?;
         out.set_item("distance", near.distance.into_pyarray(py))?;
@@ -362,6 +365,7 @@ impl RayScene {
         out.set_item("triangle_id", near.triangle_id.into_pyarray(py))?;
         out.set_item("u", near.u.into_pyarray(py))?;
         out.set_item("v", near.v.into_pyarray(py))?;
+        out.set_item("normal", normal.into_pyarray(py))?;
         Ok(out)
     }
 }

@@ -235,6 +235,11 @@ def test_closest_point_equals_brute_force():
     np.testing.assert_allclose((1 - u - w) * corners[:, 0] + u * corners[:, 1] + w * corners[:, 2],
                                near["point"], atol=1e-12)
     assert set(np.unique(near["mesh_id"])) == {0, 1}
+    # The normal: unit, at right angles to the named triangle's edges.
+    n = near["normal"]
+    np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1, atol=1e-12)
+    for e in (corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]):
+        np.testing.assert_allclose(np.einsum("ij,ij->i", n, e), 0, atol=1e-12)
     # The same on any thread count, and from float32 points as from
     # their float64 values.
     again = scene.closest_point(p, threads=2)

@@ -357,19 +357,22 @@ impl Mesh {
 
     /// The point of the mesh nearest `p`, placed by `to_world` (object to
     /// world; `None`: as it is), where its squared distance in world space
-    /// is at most `reach`: the triangle's index (in the [`MeshData`]) and
-    /// its nearest point (in world space). Of triangles equally near, the
-    /// first in the mesh's own order, whatever order the tree gives them
-    /// in. `stack` is the traversal's, reused between calls.
+    /// is at most `reach`: the triangle's index (in the [`MeshData`]), its
+    /// nearest point (in world space) and the triangle's unit geometric
+    /// normal (in object space; zero for a degenerate triangle). Of
+    /// triangles equally near, the first in the mesh's own order, whatever
+    /// order the tree gives them in. `stack` is the traversal's, reused
+    /// between calls.
     pub fn nearest_point(
         &self,
         p: DVec3,
         reach: f64,
         to_world: Option<&DAffine3>,
         stack: &mut Vec<(f64, u32, u16)>,
-    ) -> Option<(u32, NearestOnTriangle)> {
+    ) -> Option<(u32, NearestOnTriangle, DVec3)> {
         let order = self.bvh.order();
-        let mut best: Option<(u32, NearestOnTriangle)> = None;
+        // Index, leaf position and nearest point of the triangle kept.
+        let mut best: Option<(u32, usize, NearestOnTriangle)> = None;
         // Each box's bound is taken down by more than the rounding of a
         // nearest point computed in it (its coordinates within the mesh's
         // bounds) and of its distance, so that the bound never exceeds what
@@ -401,20 +404,20 @@ impl Mesh {
                 let better = match best {
                     _ if near.distance_squared > reach => false,
                     None => true,
-                    Some((held, h)) => {
+                    Some((held, _, h)) => {
                         near.distance_squared < h.distance_squared
                             || (near.distance_squared == h.distance_squared && index < held)
                     }
                 };
                 if better {
-                    best = Some((index, near));
+                    best = Some((index, position, near));
                     near.distance_squared
                 } else {
                     reach
                 }
             },
         );
-        best
+        best.map(|(index, position, near)| (index, near, facet_normal(self.corners(position))))
     }
 
     /// Calls `each` with the index (in the [`MeshData`]) and hit of every

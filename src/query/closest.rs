@@ -1,6 +1,6 @@
 //! The nearest surface point: for each query point, the point of the
 //! scene's meshes nearest it (in world space), with the triangle it lies
-//! on and its barycentric weights (see `geometry::nearest` for one
+//! on, its barycentric weights and the triangle's normal (see `geometry::nearest` for one
 //! triangle). Each mesh's tree is walked nearest box first, every box
 //! farther than the nearest point found so far left out. Of points
 //! equally near, the one on the first mesh (by id), then on its first
@@ -35,6 +35,11 @@ pub struct NearestPoints {
     pub u: Vec<f64>,
     /// Barycentric weight of the third vertex.
     pub v: Vec<f64>,
+    /// Unit geometric normal of its triangle (right-hand rule of the
+    /// face's vertex order, through the mesh's transform; zero for a
+    /// degenerate triangle and where the scene has no mesh), `x, y, z` per
+    /// query point.
+    pub normal: Vec<f64>,
 }
 
 /// One query point's answer.
@@ -46,6 +51,7 @@ struct Nearest {
     triangle_id: i64,
     u: f64,
     v: f64,
+    normal: DVec3,
 }
 
 const NONE: Nearest = Nearest {
@@ -55,6 +61,7 @@ const NONE: Nearest = Nearest {
     triangle_id: -1,
     u: 0.0,
     v: 0.0,
+    normal: DVec3::ZERO,
 };
 
 impl RayScene {
@@ -91,6 +98,7 @@ impl RayScene {
             triangle_id: Vec::with_capacity(n),
             u: Vec::with_capacity(n),
             v: Vec::with_capacity(n),
+            normal: Vec::with_capacity(3 * n),
         };
         for a in answers {
             out.point.extend(a.point.to_array());
@@ -99,6 +107,7 @@ impl RayScene {
             out.triangle_id.push(a.triangle_id);
             out.u.push(a.u);
             out.v.push(a.v);
+            out.normal.extend(a.normal.to_array());
         }
         Ok(out)
     }
@@ -110,7 +119,7 @@ impl RayScene {
         let mut best = NONE;
         for (id, placed) in self.meshes.iter().enumerate() {
             let to_world = placed.transform.as_ref().map(|t| &t.to_world);
-            let Some((triangle, near)) =
+            let Some((triangle, near, normal)) =
                 placed
                     .mesh
                     .nearest_point(p, best.distance_squared, to_world, stack)
@@ -125,6 +134,12 @@ impl RayScene {
                     triangle_id: i64::from(triangle),
                     u: near.u,
                     v: near.v,
+                    // As `intersect`'s normal, but zero rather than NaN
+                    // for a degenerate triangle (which a ray never hits).
+                    normal: match &placed.transform {
+                        None => normal,
+                        Some(t) => (t.normal_to_world * normal).normalize_or_zero(),
+                    },
                 };
             }
         }

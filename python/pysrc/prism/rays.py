@@ -239,7 +239,9 @@ class RayScene:
         dict of arrays: ``point`` ((N, 3) float64), ``distance`` (float64),
         ``mesh_id`` and ``triangle_id`` (int64; the triangle's row in its
         mesh's ``faces``), ``u`` and ``v`` (barycentric: the point is
-        ``(1-u-v)*a + u*b + v*c``). Of points equally near, the one on the
+        ``(1-u-v)*a + u*b + v*c``) and ``normal`` ((N, 3), the triangle's
+        unit geometric normal as ``intersect`` gives it; zero for a
+        degenerate triangle). Of points equally near, the one on the
         lowest mesh id, then on the first triangle in its ``faces``, so the
         answer depends on the point alone. Computed in double precision
         (each triangle's nearest point by the region of its plane the point
