@@ -47,6 +47,22 @@ fn cpu_seconds() -> f64 {
     ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
 }
 
+/// One row's line: its name, the CPU and wall seconds of each round, and
+/// the answer's hash.
+fn print_row(name: &str, times: &[f64], walls: &[f64], hash: u64) {
+    let show = |v: &[f64]| {
+        v.iter()
+            .map(|t| format!("{t:.4}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    println!(
+        "{name}: cpu {} wall {} hash {hash:016x}",
+        show(times),
+        show(walls)
+    );
+}
+
 /// The batch as `RayScene`'s Python methods make it (its coordinates
 /// checked by the query).
 fn batch<'a>(o: &'a [f64], d: &'a [f64]) -> Rays<'a> {
@@ -146,17 +162,7 @@ fn main() {
                         }
                         hash = h.finish();
                     }
-                    let show = |v: &[f64]| {
-                        v.iter()
-                            .map(|t| format!("{t:.4}"))
-                            .collect::<Vec<_>>()
-                            .join(" ")
-                    };
-                    println!(
-                        "{name}: cpu {} wall {} hash {hash:016x}",
-                        show(&times),
-                        show(&walls)
-                    );
+                    print_row(&name, &times, &walls, hash);
                 }
             }
         }
@@ -224,23 +230,13 @@ fn closest_point_rows(scene: &RayScene, mesh: &str, v: &[f64], rounds: usize, fi
             times.push(cpu_seconds() - start);
             walls.push(wall.elapsed().as_secs_f64());
             let mut h = DefaultHasher::new();
-            for x in [&near.point, &near.distance, &near.u, &near.v] {
+            for x in [&near.point, &near.distance, &near.u, &near.v, &near.normal] {
                 x.iter().for_each(|x| x.to_bits().hash(&mut h));
             }
             near.mesh_id.hash(&mut h);
             near.triangle_id.hash(&mut h);
             hash = h.finish();
         }
-        let show = |v: &[f64]| {
-            v.iter()
-                .map(|t| format!("{t:.4}"))
-                .collect::<Vec<_>>()
-                .join(" ")
-        };
-        println!(
-            "{name}: cpu {} wall {} hash {hash:016x}",
-            show(&times),
-            show(&walls)
-        );
+        print_row(&name, &times, &walls, hash);
     }
 }
