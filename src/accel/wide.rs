@@ -714,8 +714,11 @@ pub fn nearest_items(
         // their lane order).
         let base = stack.len();
         for lane in 0..WIDTH {
+            if node.valid & (1 << lane) == 0 {
+                continue;
+            }
             let bound = lower(&node.lane_box(lane));
-            if node.valid & (1 << lane) == 0 || bound > reach {
+            if bound > reach {
                 continue;
             }
             let mut at = stack.len();
