@@ -710,8 +710,8 @@ pub fn nearest_items(
         }
         let node = &wide[child as usize];
         // Pushed farthest first, so that the nearest is taken up next: each
-        // box met inserted below those nearer than it (equal bounds keep
-        // their lane order).
+        // box met inserted below those nearer than it (of equal bounds, the
+        // later lane is taken up first; the answer does not depend on it).
         let base = stack.len();
         for lane in 0..WIDTH {
             if node.valid & (1 << lane) == 0 {
