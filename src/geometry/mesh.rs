@@ -9,7 +9,7 @@ use super::Aabb;
 use super::nearest::{NearestOnTriangle, nearest_on_triangle};
 use super::terminator::terminator_offset;
 use super::triangle::{
-    TriangleHit, WatertightLanes, WatertightRay, triangle_hit, triangle_hit_as,
+    TriangleHit, WatertightLanes, WatertightRay, triangle_hit, triangle_hit_as, triangle_hit_at,
     triangle_hit_dispatched, triangle_hit_lanes,
 };
 use crate::accel::bvh::{AnyTest, Bvh, ClosestTest, Fetch};
@@ -560,6 +560,13 @@ impl Mesh {
         }
     }
 
+    /// The corners of the triangle at leaf position `triangle`, where they
+    /// lie (see `triangle_hit_at`).
+    #[inline(always)]
+    fn corner_refs(&self, triangle: usize) -> [&DVec3; 3] {
+        self.triangles[triangle].map(|i| &self.positions[i as usize])
+    }
+
     #[inline(always)]
     fn corners(&self, triangle: usize) -> [DVec3; 3] {
         let [a, b, c] = self.triangles[triangle];
@@ -599,6 +606,7 @@ impl Mesh {
             ray: WatertightRay::new(origin, direction),
             t_min,
             best: None,
+            reach: f64::INFINITY,
         };
         self.bvh
             .closest_on(kernel, &NodeRay::new(origin, direction), t_max, &mut leaf);
@@ -637,6 +645,7 @@ impl Mesh {
             ray: WatertightRay::new(origin, direction),
             t_min,
             best: None,
+            reach: f64::INFINITY,
         };
         self.bvh
             .closest_on(kernel, &NodeRay::new(origin, direction), t_max, &mut leaf);
@@ -688,6 +697,7 @@ impl Mesh {
                     ray: WatertightRay::new(ray(k).0, ray(k).1),
                     t_min,
                     best: None,
+                    reach: f64::INFINITY,
                 });
             let node_rays = std::array::from_fn(|k| NodeRay::new(ray(k).0, ray(k).1));
             let mut limits = [f64::NEG_INFINITY; STREAM];
@@ -742,6 +752,7 @@ impl Mesh {
                     ray: WatertightRay::new(ray(k).0, ray(k).1),
                     t_min,
                     best: None,
+                    reach: f64::INFINITY,
                 });
             let node_rays = std::array::from_fn(|k| NodeRay::new(ray(k).0, ray(k).1));
             let mut limits = [f64::NEG_INFINITY; STREAM];
@@ -1119,6 +1130,8 @@ struct ClosestTriangle<'a, const P: u8 = ANY_AXES> {
     t_min: f64,
     /// Leaf position and hit of the triangle kept so far.
     best: Option<(usize, TriangleHit)>,
+    /// Where to look for hits once one is held (see `closer_triangle`).
+    reach: f64,
 }
 
 impl<const P: u8> ClosestTest for ClosestTriangle<'_, P> {
@@ -1128,7 +1141,7 @@ impl<const P: u8> ClosestTest for ClosestTriangle<'_, P> {
             self.mesh,
             &self.ray,
             self.t_min,
-            &mut self.best,
+            (&mut self.best, &mut self.reach),
             position,
             t_max,
         )
@@ -1199,12 +1212,16 @@ impl PacketClosestTest for &mut ClosestTriangles<'_> {
             while scan != 0 {
                 let k = scan.trailing_zeros() as usize;
                 scan &= scan - 1;
-                let (ray, best) = (&one_by_one[k], &mut self.best[k]);
+                let held = (&mut self.best[k], &mut self.reach[k]);
                 if let Some(t) = closer_triangle::<ANY_AXES>(
-                    self.mesh, ray, self.t_min, best, position, t_max[k],
+                    self.mesh,
+                    &one_by_one[k],
+                    self.t_min,
+                    held,
+                    position,
+                    t_max[k],
                 ) {
                     t_max[k] = t;
-                    self.reach[k] = t.next_up();
                     closer |= 1 << k;
                 }
             }
@@ -1247,27 +1264,32 @@ fn closer_triangle<const P: u8>(
     mesh: &Mesh,
     ray: &WatertightRay,
     t_min: f64,
-    best: &mut Option<(usize, TriangleHit)>,
+    (best, reach): (&mut Option<(usize, TriangleHit)>, &mut f64),
     position: usize,
     t_max: f64,
 ) -> Option<f64> {
-    let [a, b, c] = mesh.corners(position);
-    // Once a hit is held, one at the same t is looked for too.
-    let limit = if best.is_some() {
-        t_max.next_up()
-    } else {
-        t_max
+    let corners = mesh.corner_refs(position);
+    // Once a hit is held, one at the same t is looked for too: `reach`,
+    // just past it, kept from when it was found (the searches pass the
+    // held hit's t as `t_max`).
+    let limit = match best {
+        Some((_, held)) => {
+            debug_assert!(held.t == t_max && *reach == t_max.next_up());
+            *reach
+        }
+        None => t_max,
     };
     let h = if P == ANY_AXES {
-        triangle_hit(ray, a, b, c, t_min, limit)
+        triangle_hit_at(ray, corners, t_min, limit)
     } else {
-        triangle_hit_as::<P>(ray, a, b, c, t_min, limit)
+        triangle_hit_as::<P>(ray, corners, t_min, limit)
     }?;
     let order = mesh.bvh.order();
     if best.is_some_and(|(held, bh)| h.t == bh.t && order[held] < order[position]) {
         return None;
     }
     *best = Some((position, h));
+    *reach = h.t.next_up();
     Some(h.t)
 }
 
@@ -1282,8 +1304,8 @@ struct BlockingTriangle<'a, const P: u8> {
 impl<const P: u8> AnyTest for BlockingTriangle<'_, P> {
     #[inline(always)]
     fn test(&mut self, position: usize) -> bool {
-        let [a, b, c] = self.mesh.corners(position);
-        triangle_hit_as::<P>(&self.ray, a, b, c, self.t_min, self.t_max).is_some()
+        let corners = self.mesh.corner_refs(position);
+        triangle_hit_as::<P>(&self.ray, corners, self.t_min, self.t_max).is_some()
     }
 }
 
@@ -1301,8 +1323,8 @@ struct EveryTriangle<'a, F, const P: u8> {
 impl<F: FnMut(u32, TriangleHit), const P: u8> AnyTest for EveryTriangle<'_, F, P> {
     #[inline(always)]
     fn test(&mut self, position: usize) -> bool {
-        let [a, b, c] = self.mesh.corners(position);
-        if let Some(h) = triangle_hit_as::<P>(&self.ray, a, b, c, self.t_min, self.t_max) {
+        let corners = self.mesh.corner_refs(position);
+        if let Some(h) = triangle_hit_as::<P>(&self.ray, corners, self.t_min, self.t_max) {
             (self.each)(self.mesh.bvh.order()[position], h);
         }
         false

@@ -16,9 +16,8 @@ use super::steps::Steps;
 #[derive(Clone, Copy, Debug)]
 pub struct WatertightRay {
     origin: DVec3,
-    /// Axis indices (kx, ky, kz): kz is the direction's largest
-    /// |component|.
-    axes: [u8; 3],
+    /// Axes (kx, ky, kz): kz is the direction's largest |component|.
+    axes: [Axis; 3],
     /// Which of the six (kx, ky, kz) it is: 2·kz, plus 1 where kx and ky
     /// are swapped (see [`triangle_hit`]).
     permutation: u8,
@@ -28,16 +27,39 @@ pub struct WatertightRay {
     sz: f64,
 }
 
+/// A coordinate axis. An enum rather than an index, so that a coordinate
+/// picked by a ray's axis at run time is one load from the vertex, with no
+/// bounds check: the compiler knows the value lies in 0..3.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+enum Axis {
+    X = 0,
+    Y = 1,
+    Z = 2,
+}
+
+impl Axis {
+    /// The coordinate of `p` on this axis.
+    #[inline(always)]
+    fn of(self, p: &DVec3) -> f64 {
+        let p: &[f64; 3] = p.as_ref();
+        p[self as usize]
+    }
+}
+
 /// The axes (kx, ky, kz) of each permutation the watertight test uses:
 /// 2·kz, plus 1 where the ray runs towards −kz (kx and ky swapped).
-const AXES: [[usize; 3]; 6] = [
-    [1, 2, 0],
-    [2, 1, 0],
-    [2, 0, 1],
-    [0, 2, 1],
-    [0, 1, 2],
-    [1, 0, 2],
-];
+const AXES: [[Axis; 3]; 6] = {
+    use Axis::{X, Y, Z};
+    [
+        [Y, Z, X],
+        [Z, Y, X],
+        [Z, X, Y],
+        [X, Z, Y],
+        [X, Y, Z],
+        [Y, X, Z],
+    ]
+};
 
 impl WatertightRay {
     /// Which of the six axis permutations the test uses for this ray
@@ -51,16 +73,16 @@ impl WatertightRay {
     /// direction.
     #[inline]
     pub fn new(origin: DVec3, direction: DVec3) -> Self {
-        let d = direction.to_array();
         let permutation = axis_permutation(direction);
-        let [kx, ky, kz] = AXES[usize::from(permutation)];
+        let axes = AXES[usize::from(permutation)];
+        let [kx, ky, kz] = axes.map(|k| k.of(&direction));
         WatertightRay {
             origin,
-            axes: [kx as u8, ky as u8, kz as u8],
+            axes,
             permutation,
-            sx: d[kx] / d[kz],
-            sy: d[ky] / d[kz],
-            sz: 1.0 / d[kz],
+            sx: kx / kz,
+            sy: ky / kz,
+            sz: 1.0 / kz,
         }
     }
 }
@@ -101,16 +123,20 @@ pub fn triangle_hit(
     t_min: f64,
     t_max: f64,
 ) -> Option<TriangleHit> {
-    permuted_test(
-        ray,
-        ray.axes.map(usize::from),
-        a,
-        b,
-        c,
-        t_min,
-        t_max,
-        &mut (),
-    )
+    permuted_test(ray, ray.axes, [&a, &b, &c], t_min, t_max, &mut ())
+}
+
+/// [`triangle_hit`] of the triangle whose corners `corners` point at: each
+/// coordinate the test uses is read straight from its vertex (a value
+/// passed in is first written out to be read so).
+#[inline(always)]
+pub fn triangle_hit_at(
+    ray: &WatertightRay,
+    corners: [&DVec3; 3],
+    t_min: f64,
+    t_max: f64,
+) -> Option<TriangleHit> {
+    permuted_test(ray, ray.axes, corners, t_min, t_max, &mut ())
 }
 
 /// [`triangle_hit`], telling `steps` the axes, the edge functions U, V,
@@ -123,7 +149,7 @@ pub fn triangle_hit_steps<S: Steps>(
     t_max: f64,
     steps: &mut S,
 ) -> Option<TriangleHit> {
-    permuted_test(ray, ray.axes.map(usize::from), a, b, c, t_min, t_max, steps)
+    permuted_test(ray, ray.axes, [&a, &b, &c], t_min, t_max, steps)
 }
 
 /// [`triangle_hit`] for a ray of permutation `P` (see
@@ -137,14 +163,12 @@ pub fn triangle_hit_steps<S: Steps>(
 #[inline(always)]
 pub(crate) fn triangle_hit_as<const P: u8>(
     ray: &WatertightRay,
-    a: DVec3,
-    b: DVec3,
-    c: DVec3,
+    corners: [&DVec3; 3],
     t_min: f64,
     t_max: f64,
 ) -> Option<TriangleHit> {
     debug_assert_eq!(ray.permutation, P);
-    permuted_test(ray, AXES[usize::from(P)], a, b, c, t_min, t_max, &mut ())
+    permuted_test(ray, AXES[usize::from(P)], corners, t_min, t_max, &mut ())
 }
 
 /// [`triangle_hit`] by a branch per test to the form compiled for the
@@ -161,12 +185,12 @@ pub fn triangle_hit_dispatched(
     t_max: f64,
 ) -> Option<TriangleHit> {
     match ray.permutation {
-        0 => triangle_hit_as::<0>(ray, a, b, c, t_min, t_max),
-        1 => triangle_hit_as::<1>(ray, a, b, c, t_min, t_max),
-        2 => triangle_hit_as::<2>(ray, a, b, c, t_min, t_max),
-        3 => triangle_hit_as::<3>(ray, a, b, c, t_min, t_max),
-        4 => triangle_hit_as::<4>(ray, a, b, c, t_min, t_max),
-        _ => triangle_hit_as::<5>(ray, a, b, c, t_min, t_max),
+        0 => triangle_hit_as::<0>(ray, [&a, &b, &c], t_min, t_max),
+        1 => triangle_hit_as::<1>(ray, [&a, &b, &c], t_min, t_max),
+        2 => triangle_hit_as::<2>(ray, [&a, &b, &c], t_min, t_max),
+        3 => triangle_hit_as::<3>(ray, [&a, &b, &c], t_min, t_max),
+        4 => triangle_hit_as::<4>(ray, [&a, &b, &c], t_min, t_max),
+        _ => triangle_hit_as::<5>(ray, [&a, &b, &c], t_min, t_max),
     }
 }
 
@@ -176,25 +200,25 @@ pub fn triangle_hit_dispatched(
 #[allow(clippy::too_many_arguments)]
 fn permuted_test<S: Steps>(
     ray: &WatertightRay,
-    [kx, ky, kz]: [usize; 3],
-    a: DVec3,
-    b: DVec3,
-    c: DVec3,
+    [kx, ky, kz]: [Axis; 3],
+    [a, b, c]: [&DVec3; 3],
     t_min: f64,
     t_max: f64,
     steps: &mut S,
 ) -> Option<TriangleHit> {
-    // The vertices relative to the origin, permuted to (kx, ky, kz): an
-    // array lookup (the index masked into range, so unchecked) rather than
-    // a three-way branch per coordinate.
-    let permute = |p: DVec3| {
-        let d = p - ray.origin;
-        let d = [d.x, d.y, d.z, 0.0];
-        (d[kx & 3], d[ky & 3], d[kz & 3])
-    };
+    // The vertices relative to the origin, permuted to (kx, ky, kz): each
+    // coordinate read from the vertex by its axis, rather than the vertex
+    // read, its difference written out and read back by index.
+    // (The origin too: permuted here, not stored so, as the searches read
+    // the prepared ray their caller has just written: a pair of its values
+    // read as one vector from two scalar stores waits for them to reach
+    // the cache.)
+    let [ox, oy, oz] = [kx, ky, kz].map(|k| k.of(&ray.origin));
+    let permute = |p: &DVec3| (kx.of(p) - ox, ky.of(p) - oy, kz.of(p) - oz);
     let (ax, ay, az) = permute(a);
     let (bx, by, bz) = permute(b);
     let (cx, cy, cz) = permute(c);
+    let [kx, ky, kz] = [kx, ky, kz].map(|k| k as usize);
     // Shear the vertices so the ray runs along +z.
     let ax = ax - ray.sx * az;
     let ay = ay - ray.sy * az;
@@ -259,7 +283,7 @@ impl WatertightLanes {
     #[inline(always)]
     pub fn new(rays: &[WatertightRay; LANES]) -> Option<Self> {
         let first = &rays[0];
-        let axes = first.axes.map(usize::from);
+        let axes = first.axes.map(|k| k as usize);
         let mut lanes = WatertightLanes {
             origin: [[0.0; LANES]; 3],
             sx: [0.0; LANES],
@@ -271,9 +295,8 @@ impl WatertightLanes {
         let mut shared = true;
         for (k, r) in rays.iter().enumerate() {
             shared &= r.axes == first.axes;
-            let o = [r.origin.x, r.origin.y, r.origin.z, 0.0];
-            for (row, &axis) in lanes.origin.iter_mut().zip(&axes) {
-                row[k] = o[axis & 3];
+            for (row, axis) in lanes.origin.iter_mut().zip(r.axes) {
+                row[k] = axis.of(&r.origin);
             }
             (lanes.sx[k], lanes.sy[k], lanes.sz[k]) = (r.sx, r.sy, r.sz);
         }
@@ -415,9 +438,9 @@ mod tests {
             if d[kz] < 0.0 {
                 std::mem::swap(&mut kx, &mut ky);
             }
-            assert_eq!(ray.axes.map(usize::from), [kx, ky, kz], "{d}");
+            assert_eq!(ray.axes.map(|k| k as usize), [kx, ky, kz], "{d}");
             let p = usize::from(ray.permutation());
-            assert_eq!(AXES[p], [kx, ky, kz], "{d}");
+            assert_eq!(AXES[p].map(|k| k as usize), [kx, ky, kz], "{d}");
             seen[p] = true;
             // The test compiled for the ray's permutation is the one that
             // reads it at run time.
@@ -435,8 +458,10 @@ mod tests {
                 3 => triangle_hit_as::<3>,
                 4 => triangle_hit_as::<4>,
                 _ => triangle_hit_as::<5>,
-            }(&ray, tri[0], tri[1], tri[2], 0.0, f64::INFINITY);
+            }(&ray, [&tri[0], &tri[1], &tri[2]], 0.0, f64::INFINITY);
             assert_eq!(any, fixed, "{d}");
+            let at = triangle_hit_at(&ray, [&tri[0], &tri[1], &tri[2]], 0.0, f64::INFINITY);
+            assert_eq!(any, at, "{d}");
             let dispatched =
                 triangle_hit_dispatched(&ray, tri[0], tri[1], tri[2], 0.0, f64::INFINITY);
             assert_eq!(any, dispatched, "{d}");
