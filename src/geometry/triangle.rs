@@ -75,14 +75,15 @@ impl WatertightRay {
     pub fn new(origin: DVec3, direction: DVec3) -> Self {
         let permutation = axis_permutation(direction);
         let axes = AXES[usize::from(permutation)];
-        let [kx, ky, kz] = axes.map(|k| k.of(&direction));
+        // The direction's components on axes kx, ky and kz.
+        let [dx, dy, dz] = axes.map(|k| k.of(&direction));
         WatertightRay {
             origin,
             axes,
             permutation,
-            sx: kx / kz,
-            sy: ky / kz,
-            sz: 1.0 / kz,
+            sx: dx / dz,
+            sy: dy / dz,
+            sz: 1.0 / dz,
         }
     }
 }
@@ -197,7 +198,6 @@ pub fn triangle_hit_dispatched(
 /// The watertight test with the ray's axes given: at run time, or as
 /// constants, which the compiler then folds into direct reads.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 fn permuted_test<S: Steps>(
     ray: &WatertightRay,
     [kx, ky, kz]: [Axis; 3],
