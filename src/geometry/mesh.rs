@@ -601,13 +601,7 @@ impl Mesh {
         t_min: f64,
         t_max: f64,
     ) -> Option<MeshHit> {
-        let mut leaf = ClosestTriangle::<ANY_AXES> {
-            mesh: self,
-            ray: WatertightRay::new(origin, direction),
-            t_min,
-            best: None,
-            reach: f64::INFINITY,
-        };
+        let mut leaf = ClosestTriangle::<ANY_AXES>::new(self, origin, direction, t_min);
         self.bvh
             .closest_on(kernel, &NodeRay::new(origin, direction), t_max, &mut leaf);
         let (triangle, h) = leaf.best?;
@@ -640,13 +634,7 @@ impl Mesh {
         t_max: f64,
         finish: impl FnOnce(usize, TriangleHit) -> H,
     ) -> Option<H> {
-        let mut leaf = ClosestTriangle::<ANY_AXES> {
-            mesh: self,
-            ray: WatertightRay::new(origin, direction),
-            t_min,
-            best: None,
-            reach: f64::INFINITY,
-        };
+        let mut leaf = ClosestTriangle::<ANY_AXES>::new(self, origin, direction, t_min);
         self.bvh
             .closest_on(kernel, &NodeRay::new(origin, direction), t_max, &mut leaf);
         let (triangle, h) = leaf.best?;
@@ -691,14 +679,9 @@ impl Mesh {
             .zip(hits.chunks_mut(STREAM))
         {
             let ray = |k: usize| rays[k.min(rays.len() - 1)];
-            let mut tests: [ClosestTriangle; STREAM] =
-                std::array::from_fn(|k| ClosestTriangle::<ANY_AXES> {
-                    mesh: self,
-                    ray: WatertightRay::new(ray(k).0, ray(k).1),
-                    t_min,
-                    best: None,
-                    reach: f64::INFINITY,
-                });
+            let mut tests: [ClosestTriangle; STREAM] = std::array::from_fn(|k| {
+                ClosestTriangle::<ANY_AXES>::new(self, ray(k).0, ray(k).1, t_min)
+            });
             let node_rays = std::array::from_fn(|k| NodeRay::new(ray(k).0, ray(k).1));
             let mut limits = [f64::NEG_INFINITY; STREAM];
             limits[..t_max.len()].copy_from_slice(t_max);
@@ -746,14 +729,9 @@ impl Mesh {
             .zip(hits.chunks_mut(STREAM))
         {
             let ray = |k: usize| rays[k.min(rays.len() - 1)];
-            let mut tests: [ClosestTriangle; STREAM] =
-                std::array::from_fn(|k| ClosestTriangle::<ANY_AXES> {
-                    mesh: self,
-                    ray: WatertightRay::new(ray(k).0, ray(k).1),
-                    t_min,
-                    best: None,
-                    reach: f64::INFINITY,
-                });
+            let mut tests: [ClosestTriangle; STREAM] = std::array::from_fn(|k| {
+                ClosestTriangle::<ANY_AXES>::new(self, ray(k).0, ray(k).1, t_min)
+            });
             let node_rays = std::array::from_fn(|k| NodeRay::new(ray(k).0, ray(k).1));
             let mut limits = [f64::NEG_INFINITY; STREAM];
             limits[..t_max.len()].copy_from_slice(t_max);
@@ -1132,6 +1110,22 @@ struct ClosestTriangle<'a, const P: u8 = ANY_AXES> {
     best: Option<(usize, TriangleHit)>,
     /// Where to look for hits once one is held (see `closer_triangle`).
     reach: f64,
+}
+
+impl<'a, const P: u8> ClosestTriangle<'a, P> {
+    /// The test of `mesh` for the ray `origin + t·direction`, with t above
+    /// `t_min`, no hit held yet.
+    #[inline(always)]
+    fn new(mesh: &'a Mesh, origin: DVec3, direction: DVec3, t_min: f64) -> Self {
+        ClosestTriangle {
+            mesh,
+            ray: WatertightRay::new(origin, direction),
+            t_min,
+            best: None,
+            // Read only once a hit is held, which sets it.
+            reach: f64::INFINITY,
+        }
+    }
 }
 
 impl<const P: u8> ClosestTest for ClosestTriangle<'_, P> {
